@@ -1,0 +1,145 @@
+//! Opening a Zenoh session: a config file, then CLI flags / environment on top.
+//!
+//! Every Echo binary shares these flags (like zenoh's own examples):
+//! `--zenoh-config`, `--mode`, `--connect`, `--listen`, `--no-multicast-scouting`, `--robot`.
+
+use anyhow::{Context, Result};
+use clap::Args;
+
+use crate::RobotId;
+
+/// Network flags shared by every Echo binary.
+#[derive(Debug, Clone, Args, Default)]
+pub struct BusArgs {
+    /// Robot id (namespace of every key).
+    #[arg(long, env = "ECHO_ROBOT", default_value = "tiago")]
+    pub robot: String,
+    /// Zenoh JSON5 config file; the flags below override it.
+    #[arg(long = "zenoh-config", env = "ECHO_ZENOH_CONFIG")]
+    pub config: Option<std::path::PathBuf>,
+    /// Session mode: peer, client or router.
+    #[arg(long, env = "ECHO_ZENOH_MODE")]
+    pub mode: Option<String>,
+    /// Endpoint(s) to connect to, e.g. tcp/127.0.0.1:7447 (repeat or comma-separate).
+    #[arg(long, env = "ECHO_CONNECT", value_delimiter = ',')]
+    pub connect: Vec<String>,
+    /// Endpoint(s) to listen on, e.g. tcp/0.0.0.0:7447 (repeat or comma-separate).
+    #[arg(long, env = "ECHO_LISTEN", value_delimiter = ',')]
+    pub listen: Vec<String>,
+    /// Disable multicast scouting (use explicit endpoints; recommended in containers and CI).
+    #[arg(long, env = "ECHO_NO_MULTICAST")]
+    pub no_multicast_scouting: bool,
+}
+
+impl BusArgs {
+    /// Flags for an explicit loopback session: listen on `listen`, connect to `connect`,
+    /// multicast scouting off.
+    pub fn loopback(robot: &str, listen: &[u16], connect: &[u16]) -> Self {
+        BusArgs {
+            robot: robot.to_string(),
+            config: None,
+            mode: Some("peer".into()),
+            connect: connect
+                .iter()
+                .map(|p| format!("tcp/127.0.0.1:{p}"))
+                .collect(),
+            listen: listen
+                .iter()
+                .map(|p| format!("tcp/127.0.0.1:{p}"))
+                .collect(),
+            no_multicast_scouting: true,
+        }
+    }
+
+    /// These flags as command-line arguments (to start a child process with the same network).
+    pub fn to_cli(&self) -> Vec<String> {
+        let mut v = vec!["--robot".to_string(), self.robot.clone()];
+        if let Some(c) = &self.config {
+            v.push("--zenoh-config".into());
+            v.push(c.display().to_string());
+        }
+        if let Some(m) = &self.mode {
+            v.push("--mode".into());
+            v.push(m.clone());
+        }
+        if !self.connect.is_empty() {
+            v.push("--connect".into());
+            v.push(self.connect.join(","));
+        }
+        if !self.listen.is_empty() {
+            v.push("--listen".into());
+            v.push(self.listen.join(","));
+        }
+        if self.no_multicast_scouting {
+            v.push("--no-multicast-scouting".into());
+        }
+        v
+    }
+
+    /// The validated robot id.
+    pub fn robot_id(&self) -> Result<RobotId> {
+        RobotId::new(&self.robot).map_err(|e| anyhow::anyhow!("--robot: {e}"))
+    }
+
+    /// Build the Zenoh config.
+    pub fn zenoh_config(&self) -> Result<zenoh::Config> {
+        let mut cfg = match &self.config {
+            Some(p) => zenoh::Config::from_file(p)
+                .map_err(|e| anyhow::anyhow!("{e}"))
+                .with_context(|| format!("reading Zenoh config {}", p.display()))?,
+            None => zenoh::Config::default(),
+        };
+        let set = |cfg: &mut zenoh::Config, key: &str, value: String| -> Result<()> {
+            cfg.insert_json5(key, &value)
+                .map_err(|e| anyhow::anyhow!("{e}"))
+                .with_context(|| format!("setting Zenoh config {key} = {value}"))
+        };
+        if let Some(m) = &self.mode {
+            match m.as_str() {
+                "peer" | "client" | "router" => set(&mut cfg, "mode", format!("\"{m}\""))?,
+                other => anyhow::bail!("--mode must be peer, client or router, not '{other}'"),
+            }
+        }
+        if !self.connect.is_empty() {
+            set(&mut cfg, "connect/endpoints", json_list(&self.connect))?;
+        }
+        if !self.listen.is_empty() {
+            set(&mut cfg, "listen/endpoints", json_list(&self.listen))?;
+        }
+        if self.no_multicast_scouting {
+            set(&mut cfg, "scouting/multicast/enabled", "false".into())?;
+        }
+        Ok(cfg)
+    }
+}
+
+fn json_list(items: &[String]) -> String {
+    serde_json::to_string(items).unwrap_or_else(|_| "[]".into())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flags_override_and_round_trip() {
+        let a = BusArgs::loopback("r1", &[7001], &[7002, 7003]);
+        let cfg = a.zenoh_config().unwrap();
+        assert!(cfg
+            .get_json("connect/endpoints")
+            .unwrap()
+            .contains("tcp/127.0.0.1:7003"));
+        assert_eq!(cfg.get_json("scouting/multicast/enabled").unwrap(), "false");
+        let cli = a.to_cli();
+        assert!(cli.contains(&"tcp/127.0.0.1:7002,tcp/127.0.0.1:7003".to_string()));
+    }
+
+    #[test]
+    fn bad_mode_and_robot_are_named() {
+        let mut a = BusArgs::loopback("r1", &[], &[]);
+        a.mode = Some("boss".into());
+        assert!(a.zenoh_config().unwrap_err().to_string().contains("boss"));
+        a.robot = "a/b".into();
+        assert!(a.robot_id().unwrap_err().to_string().contains("--robot"));
+    }
+}

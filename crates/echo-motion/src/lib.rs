@@ -1,0 +1,10 @@
+//! Human motion: the 22-joint SMPL body skeleton, rotation conversions, forward and inverse
+//! kinematics, and scripted single-person motions used by the mock perception publisher.
+//!
+//! World convention: REP-103, z up, metres.
+
+pub mod rotation;
+pub mod scripted;
+pub mod skeleton;
+
+pub use skeleton::{Body, Pose, NUM_JOINTS, PARENTS};
