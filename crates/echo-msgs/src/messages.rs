@@ -116,6 +116,10 @@ pub struct KeypointFrame {
     pub header: Header,
     /// Joint layout of every person in `people`.
     pub format: KeypointFormat,
+    /// Optional joint order: names from `format` (a permutation or subset) giving the order of
+    /// every person's keypoints; absent = the format's own order and all of its joints.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_names: Option<Vec<String>>,
     /// Camera intrinsics; required for pixel keypoints.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub camera: Option<CameraIntrinsics>,
@@ -168,7 +172,13 @@ impl Validate for KeypointFrame {
                 }
             }
         }
-        let n = self.format.joint_names().len();
+        let n = match &self.joint_names {
+            Some(names) => {
+                check_joint_names("joint_names", names, self.format.joint_names())?;
+                names.len()
+            }
+            None => self.format.joint_names().len(),
+        };
         for (p, person) in self.people.iter().enumerate() {
             check_len(
                 &format!("people[{p}].confidence"),

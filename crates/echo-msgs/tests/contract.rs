@@ -10,6 +10,7 @@ fn points3d_frame(n: usize) -> KeypointFrame {
     KeypointFrame {
         header: header(),
         format: KeypointFormat::Smpl24,
+        joint_names: None,
         camera: None,
         depth_image: None,
         people: vec![DetectedPerson {
@@ -201,4 +202,15 @@ fn unknown_joints_are_named() {
 fn oversized_payload_is_rejected_unparsed() {
     let big = vec![b' '; MAX_PAYLOAD_BYTES + 1];
     assert_eq!(decode::<EStop>(&big).unwrap_err().reason(), "too_large");
+}
+
+#[test]
+fn explicit_joint_names_must_belong_to_the_format() {
+    let mut f = points3d_frame(2);
+    f.joint_names = Some(vec!["right_wrist".into(), "left_wrist".into()]);
+    f.validate().unwrap();
+    f.joint_names = Some(vec!["right_wrist".into(), "left_pinky".into()]);
+    let err = f.validate().unwrap_err();
+    assert_eq!(err.reason(), "unknown_joint");
+    assert!(err.to_string().contains("left_pinky"));
 }
