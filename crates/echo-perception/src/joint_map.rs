@@ -141,10 +141,12 @@ impl ResolvedMap {
     }
 }
 
-/// COCO-17 onto SMPL-22: hips, knees, ankles, shoulders, elbows and wrists are direct; the
-/// pelvis is the hip midpoint; the neck the shoulder midpoint; spine1/2/3 at 1/4, 1/2, 3/4 from
-/// pelvis to neck; collars halfway from the neck to each shoulder; the head between the ears.
-/// COCO has no feet: they stay missing and the tracker fills them from the ankles.
+/// COCO-17 onto SMPL-22: hips, knees, ankles, shoulders, elbows and wrists are direct. The SMPL
+/// pelvis, spine and neck lie on the line from the hip midpoint (t = 0) to the shoulder midpoint
+/// (t = 1) at the fractions of the reference body: pelvis 0.16, spine1 0.35, spine2 0.60,
+/// spine3 0.74, neck 1.16 (the neck joint sits above the shoulder line). Collars are 39 % of
+/// the way from the shoulder midpoint to each shoulder; the head is between the ears.
+/// COCO has no feet: they stay missing and the tracker places them from the ankles.
 fn coco17() -> JointMap {
     let j = |n: &str| JointSource::Joint(n.into());
     let hips_shoulders = |t: f64| {
@@ -159,21 +161,21 @@ fn coco17() -> JointMap {
         |a: &str, wa: f64, b: &str| JointSource::Blend(vec![(a.into(), wa), (b.into(), 1.0 - wa)]);
     JointMap {
         joints: vec![
-            pair("left_hip", 0.5, "right_hip"),
+            hips_shoulders(0.16),
             j("left_hip"),
             j("right_hip"),
-            hips_shoulders(0.25),
+            hips_shoulders(0.35),
             j("left_knee"),
             j("right_knee"),
-            hips_shoulders(0.5),
+            hips_shoulders(0.60),
             j("left_ankle"),
             j("right_ankle"),
-            hips_shoulders(0.75),
+            hips_shoulders(0.74),
             JointSource::Missing,
             JointSource::Missing,
-            pair("left_shoulder", 0.5, "right_shoulder"),
-            pair("left_shoulder", 0.75, "right_shoulder"),
-            pair("right_shoulder", 0.75, "left_shoulder"),
+            hips_shoulders(1.16),
+            pair("left_shoulder", 0.695, "right_shoulder"),
+            pair("right_shoulder", 0.695, "left_shoulder"),
             pair("left_ear", 0.5, "right_ear"),
             j("left_shoulder"),
             j("right_shoulder"),
@@ -209,10 +211,10 @@ mod tests {
         pts[5] = [0.0, 0.2, 1.5]; // left shoulder
         pts[6] = [0.0, -0.2, 1.5];
         let (p, c) = m.apply(&pts, &[0.9; 17]);
-        assert_eq!(p[0], [0.0, 0.0, 1.0]);
-        assert_eq!(p[12], [0.0, 0.0, 1.5]);
-        assert!((p[6][2] - 1.25).abs() < 1e-12);
-        assert!((p[13][1] - 0.1).abs() < 1e-12);
+        assert!((p[0][2] - 1.08).abs() < 1e-12);
+        assert!((p[12][2] - 1.58).abs() < 1e-12);
+        assert!((p[6][2] - 1.30).abs() < 1e-12);
+        assert!((p[13][1] - 0.078).abs() < 1e-12);
         assert_eq!(c[10], 0.0, "feet are not observed");
     }
 

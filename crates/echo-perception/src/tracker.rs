@@ -22,13 +22,16 @@ pub struct Detection {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DetectionError {
     /// Too few joints seen, or no pelvis.
-    #[error("only {observed} joints observed (need {needed}, pelvis included)")]
+    #[error("only {observed} joints observed (need {needed})")]
     TooFewJoints {
         /// Joints seen.
         observed: usize,
         /// Joints needed.
         needed: usize,
     },
+    /// Neither the pelvis nor the hips and spine to place it were seen.
+    #[error("pelvis not observed and not recoverable from the hips and spine")]
+    NoPelvis,
     /// Too many bones of implausible length.
     #[error("{bad} bones have implausible lengths (first: {first})")]
     ImplausibleBones {
@@ -54,6 +57,7 @@ impl DetectionError {
     pub fn reason(&self) -> &'static str {
         match self {
             DetectionError::TooFewJoints { .. } => "too_few_joints",
+            DetectionError::NoPelvis => "no_pelvis",
             DetectionError::ImplausibleBones { .. } => "implausible_bones",
             DetectionError::Teleport { .. } => "teleport",
         }
@@ -160,11 +164,23 @@ impl Tracker {
             .iter()
             .filter(|c| **c >= cfg.min_confidence)
             .count();
-        if observed < cfg.min_observed_joints || d.confidence[j::PELVIS] < cfg.min_confidence {
+        if observed < cfg.min_observed_joints {
             return Err(DetectionError::TooFewJoints {
                 observed,
                 needed: cfg.min_observed_joints,
             });
+        }
+        if d.confidence[j::PELVIS] < cfg.min_confidence {
+            // The pelvis lies 45 % of the way from the hip midpoint to spine1 (reference body).
+            let c = d.confidence[j::L_HIP]
+                .min(d.confidence[j::R_HIP])
+                .min(d.confidence[j::SPINE1]);
+            if c < cfg.min_confidence {
+                return Err(DetectionError::NoPelvis);
+            }
+            let mid = (d.joints[j::L_HIP] + d.joints[j::R_HIP]) * 0.5;
+            d.joints[j::PELVIS] = mid + (d.joints[j::SPINE1] - mid) * 0.45;
+            d.confidence[j::PELVIS] = c;
         }
         Ok(())
     }

@@ -1,0 +1,244 @@
+//! Mock pose estimator.
+
+use echo_motion::scripted::{bystander, demo_partner, ScriptedPerson};
+use echo_motion::skeleton::{j, NUM_JOINTS};
+use echo_msgs::{
+    frames, CameraIntrinsics, DetectedPerson, Header, KeypointFormat, KeypointFrame, Keypoints,
+};
+use nalgebra::{Isometry3, Point3, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_distr::{Distribution, Normal};
+use serde::{Deserialize, Serialize};
+
+/// Keypoint layout the mock estimator reports.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MockFormat {
+    /// SMPL-24 3D points in the camera frame (like HybrIK with depth alignment).
+    Smpl24Points,
+    /// COCO-17 pixels with per-keypoint depth (like YOLO-pose on an RGB-D camera).
+    Coco17PixelsDepth,
+}
+
+/// Mock perception settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MockPerceptionConfig {
+    /// Output format.
+    pub format: MockFormat,
+    /// Frame rate, Hz.
+    pub rate_hz: f64,
+    /// Gaussian keypoint noise (σ), metres.
+    pub noise_m: f64,
+    /// Probability that a joint is reported missing (confidence 0) in a frame.
+    pub drop_joint_prob: f64,
+    /// Probability that a whole frame is lost.
+    pub drop_frame_prob: f64,
+    /// Delay between capture and publication, ms.
+    pub latency_ms: f64,
+    /// Add a bystander walking across the scene.
+    pub bystander: bool,
+    /// Partner height, metres.
+    pub partner_height_m: f64,
+    /// Random seed.
+    pub seed: u64,
+    /// Loop the script.
+    pub repeat: bool,
+}
+
+impl Default for MockPerceptionConfig {
+    fn default() -> Self {
+        MockPerceptionConfig {
+            format: MockFormat::Smpl24Points,
+            rate_hz: 15.0,
+            noise_m: 0.01,
+            drop_joint_prob: 0.02,
+            drop_frame_prob: 0.0,
+            latency_ms: 30.0,
+            bystander: false,
+            partner_height_m: 1.75,
+            seed: 7,
+            repeat: true,
+        }
+    }
+}
+
+/// The head camera's intrinsics (640 × 480 RGB-D, ~62° horizontal field of view).
+pub const CAMERA: CameraIntrinsics = CameraIntrinsics {
+    fx: 522.0,
+    fy: 522.0,
+    cx: 320.0,
+    cy: 240.0,
+    width: 640,
+    height: 480,
+};
+
+/// A mock estimator watching scripted people.
+#[derive(Debug, Clone)]
+pub struct MockPerception {
+    cfg: MockPerceptionConfig,
+    people: Vec<ScriptedPerson>,
+    rng: rand::rngs::StdRng,
+}
+
+impl MockPerception {
+    /// The demo scene: the partner (and a bystander if configured).
+    pub fn new(cfg: MockPerceptionConfig) -> Self {
+        let mut people = vec![demo_partner(cfg.partner_height_m)];
+        if cfg.bystander {
+            people.push(bystander(1.65));
+        }
+        Self::with_people(cfg, people)
+    }
+
+    /// A scene with the given people.
+    pub fn with_people(cfg: MockPerceptionConfig, people: Vec<ScriptedPerson>) -> Self {
+        let rng = rand::rngs::StdRng::seed_from_u64(cfg.seed);
+        MockPerception { cfg, people, rng }
+    }
+
+    /// Settings.
+    pub fn config(&self) -> &MockPerceptionConfig {
+        &self.cfg
+    }
+
+    /// Script time for wall time `t` since start (wraps when repeating).
+    pub fn script_time(&self, t: f64) -> f64 {
+        let d = self.people[0].duration();
+        if self.cfg.repeat && d > 0.0 {
+            t.rem_euclid(d)
+        } else {
+            t
+        }
+    }
+
+    /// Ground-truth joints of every person at script time `t`, in `base_footprint`.
+    pub fn truth(&self, t: f64) -> Vec<[Vector3<f64>; NUM_JOINTS]> {
+        self.people.iter().map(|p| p.joints_at(t)).collect()
+    }
+
+    /// The estimator's output for an image captured at script time `t` (stamped `stamp_ns`)
+    /// with the camera at `camera` (camera optical frame in `base_footprint`). `None` when the
+    /// frame is lost.
+    pub fn frame(
+        &mut self,
+        robot_id: &str,
+        t: f64,
+        stamp_ns: u64,
+        camera: &Isometry3<f64>,
+    ) -> Option<KeypointFrame> {
+        if self.rng.random::<f64>() < self.cfg.drop_frame_prob {
+            return None;
+        }
+        let noise = Normal::new(0.0, self.cfg.noise_m.max(0.0)).ok()?;
+        let to_cam = camera.inverse();
+        let mut people = vec![];
+        for (pid, truth) in self.truth(t).into_iter().enumerate() {
+            let pts: Vec<Vector3<f64>> = truth
+                .iter()
+                .map(|p| (to_cam * Point3::from(*p)).coords)
+                .collect();
+            // Not in front of the camera: not detected.
+            if pts[j::PELVIS].z < 0.3 {
+                continue;
+            }
+            let mut noisy = |p: &Vector3<f64>| {
+                p + Vector3::new(
+                    noise.sample(&mut self.rng),
+                    noise.sample(&mut self.rng),
+                    noise.sample(&mut self.rng),
+                )
+            };
+            let (keypoints, mut conf) = match self.cfg.format {
+                MockFormat::Smpl24Points => {
+                    let mut all: Vec<Vector3<f64>> = pts.iter().map(&mut noisy).collect();
+                    // SMPL hands: a little beyond the wrists along the forearms.
+                    for (w, e) in [(j::L_WRIST, j::L_ELBOW), (j::R_WRIST, j::R_ELBOW)] {
+                        let dir = (pts[w] - pts[e]).normalize();
+                        all.push(noisy(&(pts[w] + dir * 0.08)));
+                    }
+                    let xyz = all.iter().map(|p| [p.x, p.y, p.z]).collect();
+                    (Keypoints::Points3d { xyz }, vec![0.95; 24])
+                }
+                MockFormat::Coco17PixelsDepth => {
+                    let coco = coco_from_smpl(&pts);
+                    let mut uv = vec![];
+                    let mut depth = vec![];
+                    let mut conf = vec![];
+                    for p in &coco {
+                        let p = noisy(p);
+                        let z = p.z.max(0.05);
+                        let (u, v) = (
+                            CAMERA.fx * p.x / z + CAMERA.cx,
+                            CAMERA.fy * p.y / z + CAMERA.cy,
+                        );
+                        let inside = (0.0..CAMERA.width as f64).contains(&u)
+                            && (0.0..CAMERA.height as f64).contains(&v);
+                        uv.push([u, v]);
+                        depth.push(z);
+                        conf.push(if inside { 0.9 } else { 0.0 });
+                    }
+                    (
+                        Keypoints::PixelsDepth {
+                            uv,
+                            depth_m: Some(depth),
+                        },
+                        conf,
+                    )
+                }
+            };
+            for c in conf.iter_mut() {
+                if self.rng.random::<f64>() < self.cfg.drop_joint_prob {
+                    *c = 0.0;
+                }
+            }
+            people.push(DetectedPerson {
+                detection_id: Some(pid as u32 + 1),
+                keypoints,
+                confidence: conf,
+            });
+        }
+        let mut header = Header::new(robot_id, "mock-perception", frames::HEAD_CAMERA_OPTICAL);
+        header.stamp_ns = stamp_ns;
+        let (format, camera) = match self.cfg.format {
+            MockFormat::Smpl24Points => (KeypointFormat::Smpl24, None),
+            MockFormat::Coco17PixelsDepth => (KeypointFormat::Coco17, Some(CAMERA)),
+        };
+        Some(KeypointFrame {
+            header,
+            format,
+            joint_names: None,
+            camera,
+            depth_image: None,
+            people,
+        })
+    }
+}
+
+/// COCO-17 keypoints of a SMPL-22 skeleton (face points from the head joint and heading).
+pub fn coco_from_smpl(p: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+    let across = (p[j::L_SHOULDER] - p[j::R_SHOULDER]).normalize();
+    let up = (p[j::NECK] - p[j::PELVIS]).normalize();
+    let fwd = across.cross(&up).normalize();
+    let head = p[j::HEAD];
+    let nose = head + fwd * 0.10;
+    vec![
+        nose,
+        nose + across * 0.03 + up * 0.03,
+        nose - across * 0.03 + up * 0.03,
+        head + across * 0.075,
+        head - across * 0.075,
+        p[j::L_SHOULDER],
+        p[j::R_SHOULDER],
+        p[j::L_ELBOW],
+        p[j::R_ELBOW],
+        p[j::L_WRIST],
+        p[j::R_WRIST],
+        p[j::L_HIP],
+        p[j::R_HIP],
+        p[j::L_KNEE],
+        p[j::R_KNEE],
+        p[j::L_ANKLE],
+        p[j::R_ANKLE],
+    ]
+}
