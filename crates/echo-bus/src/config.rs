@@ -16,7 +16,7 @@ pub struct BusArgs {
     pub robot: String,
     /// Zenoh JSON5 config file; the flags below override it.
     #[arg(long = "zenoh-config", env = "ECHO_ZENOH_CONFIG")]
-    pub config: Option<std::path::PathBuf>,
+    pub zenoh_config: Option<std::path::PathBuf>,
     /// Session mode: peer, client or router.
     #[arg(long, env = "ECHO_ZENOH_MODE")]
     pub mode: Option<String>,
@@ -37,7 +37,7 @@ impl BusArgs {
     pub fn loopback(robot: &str, listen: &[u16], connect: &[u16]) -> Self {
         BusArgs {
             robot: robot.to_string(),
-            config: None,
+            zenoh_config: None,
             mode: Some("peer".into()),
             connect: connect
                 .iter()
@@ -54,7 +54,7 @@ impl BusArgs {
     /// These flags as command-line arguments (to start a child process with the same network).
     pub fn to_cli(&self) -> Vec<String> {
         let mut v = vec!["--robot".to_string(), self.robot.clone()];
-        if let Some(c) = &self.config {
+        if let Some(c) = &self.zenoh_config {
             v.push("--zenoh-config".into());
             v.push(c.display().to_string());
         }
@@ -83,7 +83,7 @@ impl BusArgs {
 
     /// Build the Zenoh config.
     pub fn zenoh_config(&self) -> Result<zenoh::Config> {
-        let mut cfg = match &self.config {
+        let mut cfg = match &self.zenoh_config {
             Some(p) => zenoh::Config::from_file(p)
                 .map_err(|e| anyhow::anyhow!("{e}"))
                 .with_context(|| format!("reading Zenoh config {}", p.display()))?,
@@ -111,6 +111,42 @@ impl BusArgs {
         }
         Ok(cfg)
     }
+}
+
+/// A TCP port free on 127.0.0.1 right now.
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("binding an ephemeral loopback port")
+}
+
+/// `n` free ports, all distinct.
+pub fn free_ports(n: usize) -> Vec<u16> {
+    let listeners: Vec<_> = (0..n)
+        .map(|_| std::net::TcpListener::bind("127.0.0.1:0").expect("binding an ephemeral port"))
+        .collect();
+    listeners
+        .iter()
+        .map(|l| l.local_addr().expect("local addr").port())
+        .collect()
+}
+
+/// Flags for `n` peers on loopback forming a full mesh (each listens on its own port and
+/// connects to every other one), multicast scouting off.
+pub fn loopback_mesh(robot: &str, n: usize) -> Vec<BusArgs> {
+    let ports = free_ports(n);
+    (0..n)
+        .map(|i| {
+            let others: Vec<u16> = ports
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != i)
+                .map(|(_, p)| *p)
+                .collect();
+            BusArgs::loopback(robot, &[ports[i]], &others)
+        })
+        .collect()
 }
 
 fn json_list(items: &[String]) -> String {

@@ -248,12 +248,16 @@ impl PerceptionBridge {
                 .push(BridgeError::Person { index, error });
         }
 
-        // Emit every model-rate grid point up to this frame's stamp.
+        // Emit every model-rate grid point up to this frame's stamp. The grid is anchored at the
+        // first frame, so an input at the model rate maps one to one without added delay; a grid
+        // point up to a quarter period after the newest frame is extrapolated from the last two.
         let period = (1e9 / self.cfg.rate_hz) as u64;
-        let mut g = *self
-            .next_grid_ns
-            .get_or_insert_with(|| stamp.div_ceil(period) * period);
-        while g <= stamp {
+        let mut g = *self.next_grid_ns.get_or_insert(stamp);
+        if g + (self.cfg.max_interp_gap_s * 1e9) as u64 <= stamp {
+            // A long input gap: skip the grid points nobody can fill, keep the phase.
+            g += (stamp - g) / period * period;
+        }
+        while g <= stamp + period / 4 {
             out.skeletons.push(self.output_at(g, &frame.header));
             g += period;
         }
@@ -269,9 +273,12 @@ impl PerceptionBridge {
         let mut candidates = vec![];
         let mut ids = vec![];
         for t in self.tracker.tracks().iter().filter(|t| t.confirmed) {
+            let lead = (1e9 / self.cfg.rate_hz) as u64 / 4;
             let obs = match t.history.as_slice() {
                 [.., a, b]
-                    if a.stamp_ns <= g && g <= b.stamp_ns && b.stamp_ns - a.stamp_ns <= max_gap =>
+                    if a.stamp_ns <= g
+                        && g <= b.stamp_ns + lead
+                        && b.stamp_ns - a.stamp_ns <= max_gap =>
                 {
                     interpolate(a, b, g)
                 }
@@ -328,9 +335,11 @@ impl PerceptionBridge {
     }
 }
 
+/// Linear interpolation between two observations (w ∈ [0, 1]), or a short extrapolation
+/// past `b` (w > 1) for grid points just after the newest frame.
 fn interpolate(a: &Observation, b: &Observation, g: u64) -> Observation {
     let w = if b.stamp_ns > a.stamp_ns {
-        (g - a.stamp_ns) as f64 / (b.stamp_ns - a.stamp_ns) as f64
+        (g as f64 - a.stamp_ns as f64) / (b.stamp_ns - a.stamp_ns) as f64
     } else {
         1.0
     };

@@ -1,1 +1,67 @@
-fn main() {}
+//! `echoctl`: Echo's command-line tool.
+//!
+//! Lifecycle: `demo`. Monitoring: `monitor`, `list`. Stand-ins: `mock-perception`, `mock-robot`.
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+use echo_bus::{shutdown, telemetry};
+
+mod cmd;
+
+/// Echo: social behaviour for TIAGo++ over a Zenoh pipeline.
+#[derive(Debug, Parser)]
+#[command(name = "echoctl", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run the whole pipeline on loopback with the mock perception and the simulated robot.
+    #[command(display_order = 1)]
+    Demo(cmd::demo::Args),
+    /// Print live messages on a key expression (like `ros2 topic echo`).
+    #[command(display_order = 10)]
+    Monitor(cmd::monitor::Args),
+    /// List the services that are alive (from liveliness tokens).
+    #[command(display_order = 11)]
+    List(cmd::list::Args),
+    /// Publish a scripted person as pose-estimator keypoints at 15 Hz.
+    #[command(display_order = 20)]
+    MockPerception(cmd::mock_perception::Args),
+    /// Simulate the TIAGo++ controllers: follow commands, publish joint states at 100 Hz.
+    #[command(display_order = 21)]
+    MockRobot(cmd::mock_robot::Args),
+}
+
+#[tokio::main]
+async fn main() -> Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Demo(a) => {
+            // The demo prints its own status line; keep its log quiet unless asked.
+            if std::env::var_os("RUST_LOG").is_none() {
+                std::env::set_var("RUST_LOG", "warn");
+            }
+            telemetry::init();
+            cmd::demo::run(a).await
+        }
+        Command::Monitor(a) => {
+            telemetry::init();
+            cmd::monitor::run(a).await
+        }
+        Command::List(a) => {
+            telemetry::init();
+            cmd::list::run(a).await
+        }
+        Command::MockPerception(a) => {
+            telemetry::init();
+            cmd::mock_perception::serve(a, shutdown::on_signals()).await
+        }
+        Command::MockRobot(a) => {
+            telemetry::init();
+            cmd::mock_robot::serve(a, shutdown::on_signals()).await
+        }
+    }
+}

@@ -3,13 +3,84 @@
 //! Inputs: `perception/raw` (KeypointFrame), `robot/state` (JointState).
 //! Output: `humans` (HumanSkeletons) at the model rate; `status/perception-bridge`.
 
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
-use anyhow::Result;
-use echo_bus::{Received, Stats};
-use echo_msgs::{HumanSkeletons, JointState, KeypointFrame};
-use echo_perception::PerceptionBridge;
+use anyhow::{Context, Result};
+use echo_bus::shutdown::Shutdown;
+use echo_bus::{topics, Bus, BusArgs, Received, Stats};
+use echo_msgs::{now_ns, HumanSkeletons, JointState, KeypointFrame};
+use echo_perception::{BridgeConfig, PerceptionBridge};
+use echo_robot::RobotModel;
 use futures::{Stream, StreamExt};
+
+/// Command-line / environment configuration of the service.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    /// Network.
+    #[command(flatten)]
+    pub bus: BusArgs,
+    /// Bridge configuration (JSON); defaults when absent.
+    #[arg(long, env = "ECHO_BRIDGE_CONFIG")]
+    pub config: Option<std::path::PathBuf>,
+    /// Robot description (URDF); the embedded TIAGo++ when absent.
+    #[arg(long, env = "ECHO_URDF")]
+    pub urdf: Option<std::path::PathBuf>,
+}
+
+struct BusOutput(echo_bus::Publisher<HumanSkeletons>);
+
+impl Output for BusOutput {
+    async fn skeletons(&mut self, msg: HumanSkeletons) -> Result<()> {
+        self.0.put(msg).await
+    }
+}
+
+/// Open the bus, wire inputs and outputs, and run until `stop` triggers.
+pub async fn serve(args: Args, stop: Shutdown) -> Result<()> {
+    let cfg = match &args.config {
+        Some(p) => BridgeConfig::from_file(p).map_err(anyhow::Error::msg)?,
+        None => BridgeConfig::default(),
+    };
+    cfg.check().map_err(anyhow::Error::msg)?;
+    let model = match &args.urdf {
+        Some(p) => {
+            RobotModel::from_urdf_file(p).with_context(|| format!("loading {}", p.display()))?
+        }
+        None => RobotModel::tiago_dual(),
+    };
+    let bus = Bus::open(&args.bus, SERVICE).await?;
+    let robot = bus.robot().clone();
+    let keypoints = bus.subscribe(&topics::perception_raw(&robot)).await?;
+    let states = bus.subscribe(&topics::robot_state(&robot)).await?;
+    let mut output = BusOutput(bus.publisher(&topics::humans(&robot)).await?);
+    let alive = bus.declare_alive().await?;
+    let reporter = bus.spawn_status_reporter(Duration::from_secs(1), stop.clone());
+
+    let kp = futures::stream::unfold(keypoints, |ib| async move {
+        ib.recv().await.map(|r| (Input::Keypoints(r), ib))
+    });
+    let js = futures::stream::unfold(states, |ib| async move {
+        ib.recv().await.map(|r| (Input::JointState(r), ib))
+    });
+    let mut stop_inputs = stop.clone();
+    let inputs = futures::stream::select(kp, js)
+        .take_until(Box::pin(async move { stop_inputs.wait().await }));
+    tracing::info!(robot = %robot, rate_hz = cfg.rate_hz, "perception bridge running");
+    let stats = bus.stats();
+    run(
+        Box::pin(inputs),
+        &mut output,
+        PerceptionBridge::new(cfg, model),
+        &stats,
+        now_ns,
+    )
+    .await?;
+    let _ = tokio::time::timeout(Duration::from_secs(2), reporter).await;
+    drop(alive);
+    bus.close().await?;
+    tracing::info!("perception bridge stopped");
+    Ok(())
+}
 
 /// Service name (liveliness token, status key, logs).
 pub const SERVICE: &str = "perception-bridge";

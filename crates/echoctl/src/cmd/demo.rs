@@ -1,0 +1,515 @@
+//! `echoctl demo`: the whole pipeline on loopback — every service a separate OS process (or a
+//! task with `--single-process`), each with its own Zenoh peer session — driven by the mock
+//! perception's scripted interaction, with a live status line and a final summary.
+//!
+//! Services whose binaries are not installed next to `echoctl` are absent from the demo.
+
+use std::collections::BTreeMap;
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, Context, Result};
+use echo_bus::config::loopback_mesh;
+use echo_bus::shutdown::{self, Shutdown, ShutdownTrigger};
+use echo_bus::stats::latency_summary;
+use echo_bus::{keys, Bus, BusArgs};
+use echo_msgs::now_ns;
+
+use super::{mock_perception, mock_robot};
+
+/// Options.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    /// Robot id.
+    #[arg(long, default_value = "tiago")]
+    pub robot: String,
+    /// Run for this many seconds (the scripted interaction lasts 13 s and repeats).
+    #[arg(long, default_value_t = 20.0)]
+    pub duration: f64,
+    /// Run every service as a task in this process (still one Zenoh session each, over loopback).
+    #[arg(long)]
+    pub single_process: bool,
+    /// Keypoint format of the mock estimator: smpl24-points or coco17-pixels-depth.
+    #[arg(long, default_value = "smpl24-points")]
+    pub format: String,
+    /// Add a bystander to the scene.
+    #[arg(long)]
+    pub bystander: bool,
+    /// Directory for the services' logs (default: a fresh temporary directory).
+    #[arg(long)]
+    pub log_dir: Option<PathBuf>,
+    /// Write the summary as JSON to this file too.
+    #[arg(long)]
+    pub summary_json: Option<PathBuf>,
+}
+
+/// How a service is started.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Launch {
+    /// `echoctl <verb>`.
+    Echoctl(&'static str),
+    /// A service binary of that name.
+    Binary,
+}
+
+/// Pipeline order: robot first (everyone needs its state), perception last (it drives the rest).
+const SERVICES: &[(&str, Launch)] = &[
+    ("mock-robot", Launch::Echoctl("mock-robot")),
+    ("perception-bridge", Launch::Binary),
+    ("forecaster", Launch::Binary),
+    ("retargeter", Launch::Binary),
+    ("safety", Launch::Binary),
+    ("mock-perception", Launch::Echoctl("mock-perception")),
+];
+
+/// Services that exist as tasks in this binary (for `--single-process`).
+const IN_PROCESS: &[&str] = &["mock-robot", "perception-bridge", "mock-perception"];
+
+#[derive(Default)]
+struct KeyStats {
+    count: u64,
+    bytes: u64,
+    ages_ms: Vec<f64>,
+}
+
+#[derive(Default)]
+struct Observed {
+    keys: BTreeMap<String, KeyStats>,
+    status: BTreeMap<String, serde_json::Value>,
+    partner_frames: u64,
+    human_frames: u64,
+}
+
+enum Running {
+    Process(tokio::process::Child),
+    Task(ShutdownTrigger, tokio::task::JoinHandle<Result<()>>),
+}
+
+/// Run the demo.
+pub async fn run(args: Args) -> Result<()> {
+    let exe_dir = std::env::current_exe()?
+        .parent()
+        .map(Path::to_path_buf)
+        .ok_or_else(|| anyhow!("cannot locate the echoctl binary's directory"))?;
+    let available: Vec<(&str, Launch)> = SERVICES
+        .iter()
+        .copied()
+        .filter(|(name, launch)| match launch {
+            Launch::Echoctl(_) => true,
+            Launch::Binary if args.single_process => IN_PROCESS.contains(name),
+            Launch::Binary => exe_dir.join(name).is_file(),
+        })
+        .collect();
+    let absent: Vec<&str> = SERVICES
+        .iter()
+        .filter(|(n, _)| !available.iter().any(|(a, _)| a == n))
+        .map(|(n, _)| *n)
+        .collect();
+    let log_dir = match &args.log_dir {
+        Some(d) => d.clone(),
+        None => std::env::temp_dir().join(format!("echo-demo-{}", std::process::id())),
+    };
+    std::fs::create_dir_all(&log_dir).with_context(|| format!("creating {}", log_dir.display()))?;
+
+    let mesh = loopback_mesh(&args.robot, available.len() + 1);
+    let bus = Bus::open(&mesh[0], "echoctl-demo").await?;
+    let robot = bus.robot().clone();
+    let watch = bus.watch_alive(&keys::alive_all(&robot)).await?;
+    let observed = Arc::new(Mutex::new(Observed::default()));
+    let _sub = subscribe_all(&bus, observed.clone()).await?;
+
+    println!(
+        "echo demo: robot '{robot}', {} over Zenoh on loopback ({})",
+        available
+            .iter()
+            .map(|(n, _)| *n)
+            .collect::<Vec<_>>()
+            .join(", "),
+        if args.single_process {
+            "single process"
+        } else {
+            "one process per service"
+        }
+    );
+    if !absent.is_empty() {
+        println!(
+            "not installed, so not part of this demo: {}",
+            absent.join(", ")
+        );
+    }
+    println!("logs: {}", log_dir.display());
+
+    let mut running: Vec<(&str, Running)> = vec![];
+    for (i, (name, launch)) in available.iter().enumerate() {
+        let net = &mesh[i + 1];
+        let r = if args.single_process {
+            start_task(name, net, &args)?
+        } else {
+            start_process(&exe_dir, name, *launch, net, &args, &log_dir)?
+        };
+        running.push((name, r));
+    }
+
+    let names: Vec<&str> = available.iter().map(|(n, _)| *n).collect();
+    let missing = watch
+        .wait_for(robot.as_str(), &names, Duration::from_secs(20))
+        .await;
+    let mut failure = None;
+    if !missing.is_empty() {
+        failure = Some(format!(
+            "services did not come up within 20 s: {}",
+            missing.join(", ")
+        ));
+    }
+
+    let started = Instant::now();
+    let mut stop = shutdown::on_signals();
+    if failure.is_none() {
+        let mut tick = tokio::time::interval(Duration::from_millis(500));
+        let tty = std::io::stdout().is_terminal();
+        let mut ticks = 0u64;
+        while started.elapsed().as_secs_f64() < args.duration {
+            tokio::select! {
+                _ = tick.tick() => {}
+                _ = stop.wait() => break,
+            }
+            let lost: Vec<&str> = names
+                .iter()
+                .copied()
+                .filter(|s| !watch.is_alive(robot.as_str(), s))
+                .collect();
+            if !lost.is_empty() {
+                failure = Some(format!(
+                    "service(s) stopped during the demo: {}",
+                    lost.join(", ")
+                ));
+                break;
+            }
+            let line = status_line(
+                started.elapsed().as_secs_f64(),
+                &observed.lock().unwrap_or_else(|e| e.into_inner()),
+            );
+            if tty {
+                print!("\r{line}");
+                let _ = std::io::stdout().flush();
+            } else if ticks % 4 == 0 {
+                println!("{line}");
+            }
+            ticks += 1;
+        }
+        println!();
+    }
+    let elapsed = started.elapsed().as_secs_f64();
+    drop(watch);
+    // Let the services publish their final status, then stop them.
+    stop_all(running).await;
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let obs = observed.lock().unwrap_or_else(|e| e.into_inner());
+    let summary = summary(&obs, elapsed);
+    println!("{}", render_summary(&summary));
+    if let Some(p) = &args.summary_json {
+        std::fs::write(p, serde_json::to_vec_pretty(&summary)?)
+            .with_context(|| format!("writing {}", p.display()))?;
+    }
+    drop(obs);
+    bus.close().await?;
+    if let Some(f) = failure {
+        anyhow::bail!("{f} (logs in {})", log_dir.display());
+    }
+    if names.contains(&"perception-bridge")
+        && summary["humans"]["partner_frames"].as_u64() == Some(0)
+    {
+        anyhow::bail!(
+            "the perception bridge never reported a partner (logs in {})",
+            log_dir.display()
+        );
+    }
+    Ok(())
+}
+
+fn start_process(
+    exe_dir: &Path,
+    name: &str,
+    launch: Launch,
+    net: &BusArgs,
+    args: &Args,
+    log_dir: &Path,
+) -> Result<Running> {
+    let (program, mut argv) = match launch {
+        Launch::Echoctl(verb) => (exe_dir.join("echoctl"), vec![verb.to_string()]),
+        Launch::Binary => (exe_dir.join(name), vec![]),
+    };
+    argv.extend(net.to_cli());
+    argv.extend(service_flags(name, args));
+    let log = std::fs::File::create(log_dir.join(format!("{name}.log")))?;
+    let child = tokio::process::Command::new(&program)
+        .args(&argv)
+        .env(
+            "RUST_LOG",
+            std::env::var("ECHO_SERVICE_LOG").unwrap_or_else(|_| "info,zenoh=warn".into()),
+        )
+        .stdout(log.try_clone()?)
+        .stderr(log)
+        .kill_on_drop(true)
+        .spawn()
+        .with_context(|| format!("starting {}", program.display()))?;
+    Ok(Running::Process(child))
+}
+
+fn service_flags(name: &str, args: &Args) -> Vec<String> {
+    match name {
+        "mock-perception" => {
+            let mut v = vec!["--format".to_string(), args.format.clone()];
+            if args.bystander {
+                v.push("--bystander".into());
+            }
+            v
+        }
+        "mock-robot" => vec!["--head-sweep".into(), "0.15".into()],
+        _ => vec![],
+    }
+}
+
+fn start_task(name: &str, net: &BusArgs, args: &Args) -> Result<Running> {
+    use clap::Parser;
+    #[derive(Parser)]
+    struct Wrap<T: clap::Args> {
+        #[command(flatten)]
+        inner: T,
+    }
+    let mut argv = vec![name.to_string()];
+    argv.extend(net.to_cli());
+    argv.extend(service_flags(name, args));
+    let (trigger, stop): (ShutdownTrigger, Shutdown) = shutdown::pair();
+    let handle = match name {
+        "mock-robot" => {
+            let a = Wrap::<mock_robot::Args>::try_parse_from(&argv)?.inner;
+            tokio::spawn(mock_robot::serve(a, stop))
+        }
+        "mock-perception" => {
+            let a = Wrap::<mock_perception::Args>::try_parse_from(&argv)?.inner;
+            tokio::spawn(mock_perception::serve(a, stop))
+        }
+        "perception-bridge" => {
+            let a = Wrap::<perception_bridge::Args>::try_parse_from(&argv)?.inner;
+            tokio::spawn(perception_bridge::serve(a, stop))
+        }
+        other => anyhow::bail!("{other} cannot run in-process"),
+    };
+    Ok(Running::Task(trigger, handle))
+}
+
+/// SIGTERM (or shutdown) in reverse start order, then wait up to 5 s before killing.
+async fn stop_all(running: Vec<(&str, Running)>) {
+    for (name, r) in running.into_iter().rev() {
+        match r {
+            Running::Process(mut child) => {
+                if let Some(pid) = child.id() {
+                    let _ = std::process::Command::new("kill")
+                        .args(["-TERM", &pid.to_string()])
+                        .status();
+                }
+                match tokio::time::timeout(Duration::from_secs(5), child.wait()).await {
+                    Ok(Ok(status)) if !status.success() => eprintln!("{name} exited with {status}"),
+                    Ok(_) => {}
+                    Err(_) => {
+                        eprintln!("{name} did not stop within 5 s: killed");
+                        let _ = child.kill().await;
+                    }
+                }
+            }
+            Running::Task(trigger, handle) => {
+                trigger.trigger();
+                match tokio::time::timeout(Duration::from_secs(5), handle).await {
+                    Ok(Ok(Err(e))) => eprintln!("{name} failed: {e:#}"),
+                    Err(_) => eprintln!("{name} did not stop within 5 s"),
+                    _ => {}
+                }
+            }
+        }
+    }
+}
+
+async fn subscribe_all(
+    bus: &Bus,
+    observed: Arc<Mutex<Observed>>,
+) -> Result<zenoh::pubsub::Subscriber<()>> {
+    let key = keys::robot_all(bus.robot());
+    let prefix = format!("{}/{}/", keys::ROOT, bus.robot());
+    bus.session()
+        .declare_subscriber(key.as_str())
+        .callback(move |sample| {
+            let now = now_ns();
+            let bytes = sample.payload().to_bytes();
+            let key = sample.key_expr().as_str();
+            let short = key.strip_prefix(&prefix).unwrap_or(key).to_string();
+            let v: Option<serde_json::Value> = serde_json::from_slice(&bytes).ok();
+            let mut o = observed.lock().unwrap_or_else(|e| e.into_inner());
+            if short.starts_with("status/") {
+                if let Some(v) = &v {
+                    o.status
+                        .insert(short.trim_start_matches("status/").to_string(), v.clone());
+                }
+            }
+            if short == "humans" {
+                o.human_frames += 1;
+                if v.as_ref()
+                    .and_then(|v| v.get("partner_id"))
+                    .is_some_and(|p| !p.is_null())
+                {
+                    o.partner_frames += 1;
+                }
+            }
+            let ks = o.keys.entry(short).or_default();
+            ks.count += 1;
+            ks.bytes += bytes.len() as u64;
+            if let Some(stamp) = v
+                .as_ref()
+                .and_then(|v| v.pointer("/header/stamp_ns"))
+                .and_then(|s| s.as_u64())
+            {
+                if ks.ages_ms.len() < 100_000 {
+                    ks.ages_ms.push((now as f64 - stamp as f64) / 1e6);
+                }
+            }
+        })
+        .await
+        .map_err(|e| anyhow!("subscribing to {key}: {e}"))
+}
+
+fn status_line(t: f64, o: &Observed) -> String {
+    let rate = |k: &str| {
+        o.keys
+            .get(k)
+            .map(|s| s.count as f64 / t.max(1e-3))
+            .unwrap_or(0.0)
+    };
+    let (rejected, dropped) = totals(o);
+    let latency = o
+        .status
+        .get("perception-bridge")
+        .and_then(|s| s.pointer("/latency/median_ms"))
+        .and_then(|v| v.as_f64())
+        .map(|m| format!(" bridge {m:.2} ms"))
+        .unwrap_or_default();
+    format!(
+        "t={t:5.1}s  keypoints {:5.1} Hz  humans {:5.1} Hz (partner {:>3})  robot/state {:5.1} Hz{latency}  rejected {rejected}  dropped {dropped}   ",
+        rate("perception/raw"),
+        rate("humans"),
+        o.partner_frames,
+        rate("robot/state"),
+    )
+}
+
+fn totals(o: &Observed) -> (u64, u64) {
+    let sum = |field: &str| -> u64 {
+        o.status
+            .values()
+            .filter_map(|s| s.get(field).and_then(|m| m.as_object()))
+            .flat_map(|m| m.values().filter_map(|v| v.as_u64()))
+            .sum()
+    };
+    (sum("rejected"), sum("dropped"))
+}
+
+fn summary(o: &Observed, elapsed: f64) -> serde_json::Value {
+    let mut keys_json = serde_json::Map::new();
+    for (k, s) in &o.keys {
+        let lat = latency_summary(s.ages_ms.iter().copied());
+        keys_json.insert(
+            k.clone(),
+            serde_json::json!({
+                "messages": s.count,
+                "rate_hz": s.count as f64 / elapsed.max(1e-3),
+                "bytes": s.bytes,
+                "age_median_ms": lat.map(|l| l.median_ms),
+                "age_p99_ms": lat.map(|l| l.p99_ms),
+            }),
+        );
+    }
+    let mut services = serde_json::Map::new();
+    for (name, s) in &o.status {
+        services.insert(
+            name.clone(),
+            serde_json::json!({
+                "rejected": s.get("rejected"),
+                "dropped": s.get("dropped"),
+                "latency": s.get("latency"),
+                "last_error": s.get("last_error"),
+            }),
+        );
+    }
+    let (rejected, dropped) = totals(o);
+    serde_json::json!({
+        "duration_s": elapsed,
+        "keys": keys_json,
+        "services": services,
+        "humans": { "frames": o.human_frames, "partner_frames": o.partner_frames },
+        "rejected_total": rejected,
+        "dropped_total": dropped,
+    })
+}
+
+fn render_summary(s: &serde_json::Value) -> String {
+    let mut out = String::new();
+    out.push_str(&format!(
+        "\nsummary after {:.1} s\n{:<28} {:>8} {:>8} {:>12} {:>12}\n",
+        s["duration_s"].as_f64().unwrap_or(0.0),
+        "key (echo/<robot>/…)",
+        "msgs",
+        "Hz",
+        "age med ms",
+        "age p99 ms"
+    ));
+    if let Some(keys) = s["keys"].as_object() {
+        for (k, v) in keys {
+            let f = |x: &serde_json::Value| {
+                x.as_f64()
+                    .map(|x| format!("{x:.2}"))
+                    .unwrap_or_else(|| "-".into())
+            };
+            out.push_str(&format!(
+                "{:<28} {:>8} {:>8.1} {:>12} {:>12}\n",
+                k,
+                v["messages"].as_u64().unwrap_or(0),
+                v["rate_hz"].as_f64().unwrap_or(0.0),
+                f(&v["age_median_ms"]),
+                f(&v["age_p99_ms"]),
+            ));
+        }
+    }
+    if let Some(svcs) = s["services"].as_object() {
+        for (name, v) in svcs {
+            let lat = v["latency"]
+                .as_object()
+                .map(|l| {
+                    format!(
+                        " processing median {:.3} ms p99 {:.3} ms",
+                        l["median_ms"].as_f64().unwrap_or(0.0),
+                        l["p99_ms"].as_f64().unwrap_or(0.0)
+                    )
+                })
+                .unwrap_or_default();
+            let total = |x: &serde_json::Value| {
+                x.as_object()
+                    .map(|m| m.values().filter_map(|v| v.as_u64()).sum::<u64>())
+                    .unwrap_or(0)
+            };
+            out.push_str(&format!(
+                "{name}: rejected {} dropped {}{lat}\n",
+                total(&v["rejected"]),
+                total(&v["dropped"])
+            ));
+        }
+    }
+    out.push_str(&format!(
+        "partner seen in {} of {} skeleton frames; {} inputs rejected, {} dropped in total",
+        s["humans"]["partner_frames"],
+        s["humans"]["frames"],
+        s["rejected_total"],
+        s["dropped_total"]
+    ));
+    out
+}

@@ -1,0 +1,120 @@
+//! `echoctl mock-perception`: a scripted partner (and optional bystander) seen by the head
+//! camera, published as pose-estimator keypoints at 15 Hz.
+
+use std::time::Duration;
+
+use anyhow::Result;
+use echo_bus::shutdown::Shutdown;
+use echo_bus::{topics, Bus, BusArgs};
+use echo_msgs::{frames, now_ns, JointState};
+use echo_robot::RobotModel;
+use echo_sim::perception::{MockFormat, MockPerception, MockPerceptionConfig};
+
+/// Service name.
+pub const SERVICE: &str = "mock-perception";
+
+/// Mock estimator options.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    /// Network.
+    #[command(flatten)]
+    pub bus: BusArgs,
+    /// Keypoint format: smpl24-points or coco17-pixels-depth.
+    #[arg(long, default_value = "smpl24-points")]
+    pub format: String,
+    /// Frame rate, Hz.
+    #[arg(long, default_value_t = 15.0)]
+    pub rate: f64,
+    /// Keypoint noise σ, metres.
+    #[arg(long, default_value_t = 0.01)]
+    pub noise: f64,
+    /// Probability that a joint is missing in a frame.
+    #[arg(long, default_value_t = 0.02)]
+    pub drop_joints: f64,
+    /// Probability that a frame is lost.
+    #[arg(long, default_value_t = 0.0)]
+    pub drop_frames: f64,
+    /// Capture-to-publish latency, ms.
+    #[arg(long, default_value_t = 30.0)]
+    pub latency_ms: f64,
+    /// Add a bystander walking across.
+    #[arg(long)]
+    pub bystander: bool,
+    /// Random seed.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+    /// Script start (ns since the UNIX epoch); default: now. Script time = (capture − start).
+    #[arg(long)]
+    pub t0_ns: Option<u64>,
+}
+
+impl Args {
+    /// The mock estimator configuration these options describe.
+    pub fn config(&self) -> Result<MockPerceptionConfig> {
+        let format = match self.format.as_str() {
+            "smpl24-points" => MockFormat::Smpl24Points,
+            "coco17-pixels-depth" => MockFormat::Coco17PixelsDepth,
+            other => anyhow::bail!(
+                "--format must be smpl24-points or coco17-pixels-depth, not '{other}'"
+            ),
+        };
+        Ok(MockPerceptionConfig {
+            format,
+            rate_hz: self.rate,
+            noise_m: self.noise,
+            drop_joint_prob: self.drop_joints,
+            drop_frame_prob: self.drop_frames,
+            latency_ms: self.latency_ms,
+            bystander: self.bystander,
+            seed: self.seed,
+            ..Default::default()
+        })
+    }
+}
+
+/// Publish keypoint frames until `stop`. The camera pose comes from the latest robot joint
+/// state (the image shows what the camera really pointed at).
+pub async fn serve(args: Args, mut stop: Shutdown) -> Result<()> {
+    let cfg = args.config()?;
+    let bus = Bus::open(&args.bus, SERVICE).await?;
+    let robot_id = bus.robot().clone();
+    let states = bus.subscribe(&topics::robot_state(&robot_id)).await?;
+    let out = bus.publisher(&topics::perception_raw(&robot_id)).await?;
+    let _alive = bus.declare_alive().await?;
+    let reporter = bus.spawn_status_reporter(Duration::from_secs(1), stop.clone());
+    let model = RobotModel::tiago_dual();
+    let mut mock = MockPerception::new(cfg.clone());
+    let t0 = args.t0_ns.unwrap_or_else(now_ns);
+    let mut latest: Option<JointState> = None;
+    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / cfg.rate_hz.max(0.1)));
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let latency = Duration::from_secs_f64(cfg.latency_ms.max(0.0) / 1e3);
+    tracing::info!(robot = %robot_id, format = %args.format, "mock perception running");
+    loop {
+        tokio::select! {
+            _ = tick.tick() => {}
+            _ = stop.wait() => break,
+        }
+        if let Some(js) = states.drain().pop() {
+            latest = Some(js.msg);
+        }
+        // Without a joint state the camera cannot be placed: the robot is not up yet.
+        let Some(js) = &latest else { continue };
+        let q = model.values_from(
+            js.name
+                .iter()
+                .zip(&js.position)
+                .filter(|(n, _)| model.joint_index(n).is_some())
+                .map(|(n, v)| (n.as_str(), *v)),
+        )?;
+        let camera = model.fk(&q, frames::HEAD_CAMERA_OPTICAL)?;
+        let stamp = now_ns();
+        let t = mock.script_time(stamp.saturating_sub(t0) as f64 / 1e9);
+        if let Some(frame) = mock.frame(robot_id.as_str(), t, stamp, &camera) {
+            tokio::time::sleep(latency).await;
+            out.put(frame).await?;
+        }
+    }
+    let _ = tokio::time::timeout(Duration::from_secs(2), reporter).await;
+    bus.close().await
+}

@@ -1,0 +1,7 @@
+//! One module per `echoctl` verb.
+
+pub mod demo;
+pub mod list;
+pub mod mock_perception;
+pub mod mock_robot;
+pub mod monitor;
