@@ -1,1 +1,164 @@
+//! System-test harness: starts Echo services as real OS processes, each with its own Zenoh
+//! peer session on free loopback ports (explicit endpoints, no multicast), waits for their
+//! liveliness tokens, and always stops them (SIGTERM, then SIGKILL) when dropped.
 
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+use anyhow::{bail, Context, Result};
+use echo_bus::config::loopback_mesh;
+use echo_bus::{keys, Bus, BusArgs};
+
+/// Directory holding the workspace's binaries for the profile the tests were built with.
+pub fn bin_dir() -> PathBuf {
+    // target/<profile>/deps/<test-exe> → target/<profile>
+    let exe = std::env::current_exe().expect("test executable path");
+    exe.parent()
+        .and_then(Path::parent)
+        .map(Path::to_path_buf)
+        .expect("target directory")
+}
+
+/// Path of a workspace binary; a clear error if it was not built.
+pub fn binary(name: &str) -> Result<PathBuf> {
+    let p = bin_dir().join(name);
+    if !p.is_file() {
+        bail!(
+            "{} is missing: build the workspace binaries first (cargo build --workspace --bins, \
+             or run the tests with `cargo test --workspace`)",
+            p.display()
+        );
+    }
+    Ok(p)
+}
+
+/// A set of service processes on one loopback mesh.
+pub struct Harness {
+    robot: String,
+    mesh: Vec<BusArgs>,
+    next: usize,
+    children: Vec<(String, Child)>,
+    log_dir: PathBuf,
+}
+
+impl Harness {
+    /// A mesh with room for `services` processes plus the test's own session.
+    pub fn new(robot: &str, services: usize) -> Result<Harness> {
+        let log_dir = std::env::temp_dir().join(format!(
+            "echo-system-{}-{}",
+            std::process::id(),
+            echo_msgs::now_ns() % 1_000_000_000
+        ));
+        std::fs::create_dir_all(&log_dir)?;
+        Ok(Harness {
+            robot: robot.to_string(),
+            mesh: loopback_mesh(robot, services + 1),
+            next: 1,
+            children: vec![],
+            log_dir,
+        })
+    }
+
+    /// Network flags for the test's own session.
+    pub fn test_args(&self) -> BusArgs {
+        self.mesh[0].clone()
+    }
+
+    /// Open the test's own bus session.
+    pub async fn bus(&self, name: &str) -> Result<Bus> {
+        Bus::open(&self.test_args(), name).await
+    }
+
+    /// Start `program` (a workspace binary) with `args`, on the next mesh slot; logs go to
+    /// `<log_dir>/<label>.log`.
+    pub fn spawn(&mut self, label: &str, program: &str, args: &[&str]) -> Result<()> {
+        let net = self
+            .mesh
+            .get(self.next)
+            .cloned()
+            .with_context(|| format!("no mesh slot left for {label}"))?;
+        self.next += 1;
+        let log = std::fs::File::create(self.log_dir.join(format!("{label}.log")))?;
+        let child = Command::new(binary(program)?)
+            .args(args)
+            .args(net.to_cli())
+            .env("RUST_LOG", "info,zenoh=warn")
+            .stdout(Stdio::from(log.try_clone()?))
+            .stderr(Stdio::from(log))
+            .spawn()
+            .with_context(|| format!("starting {label}"))?;
+        self.children.push((label.to_string(), child));
+        Ok(())
+    }
+
+    /// Wait until every service in `services` has its liveliness token, or fail naming the
+    /// ones missing (with the tail of their logs).
+    pub async fn wait_alive(
+        &mut self,
+        bus: &Bus,
+        services: &[&str],
+        timeout: Duration,
+    ) -> Result<()> {
+        let watch = bus.watch_alive(&keys::alive_all(bus.robot())).await?;
+        let missing = watch.wait_for(&self.robot, services, timeout).await;
+        if !missing.is_empty() {
+            let mut msg = format!("not alive after {timeout:?}: {}", missing.join(", "));
+            for m in &missing {
+                msg.push_str(&format!("\n--- {m} log:\n{}", self.log_tail(m)));
+            }
+            bail!(msg);
+        }
+        Ok(())
+    }
+
+    /// Whether a started process is still running.
+    pub fn is_running(&mut self, label: &str) -> bool {
+        self.children
+            .iter_mut()
+            .find(|(l, _)| l == label)
+            .is_some_and(|(_, c)| matches!(c.try_wait(), Ok(None)))
+    }
+
+    /// The last lines of a service's log.
+    pub fn log_tail(&self, label: &str) -> String {
+        let text =
+            std::fs::read_to_string(self.log_dir.join(format!("{label}.log"))).unwrap_or_default();
+        let lines: Vec<&str> = text.lines().collect();
+        lines[lines.len().saturating_sub(30)..].join("\n")
+    }
+
+    /// Stop one process: SIGTERM, then SIGKILL after `grace`. Returns whether it exited cleanly.
+    pub fn stop(&mut self, label: &str, grace: Duration) -> bool {
+        let Some(pos) = self.children.iter().position(|(l, _)| l == label) else {
+            return false;
+        };
+        let (_, mut child) = self.children.remove(pos);
+        terminate(&mut child, grace)
+    }
+}
+
+fn terminate(child: &mut Child, grace: Duration) -> bool {
+    let _ = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .stderr(Stdio::null())
+        .status();
+    let deadline = std::time::Instant::now() + grace;
+    while std::time::Instant::now() < deadline {
+        if let Ok(Some(status)) = child.try_wait() {
+            return status.success();
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    false
+}
+
+impl Drop for Harness {
+    fn drop(&mut self) {
+        for (_, mut c) in self.children.drain(..).rev() {
+            terminate(&mut c, Duration::from_secs(3));
+        }
+    }
+}

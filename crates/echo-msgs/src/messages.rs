@@ -82,6 +82,7 @@ pub struct DepthImage {
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Keypoints {
     /// 3D points in the camera optical frame, metres.
+    #[serde(rename = "points_3d")]
     Points3d {
         /// One point per joint of the frame's format.
         xyz: Vec<[f64; 3]>,
