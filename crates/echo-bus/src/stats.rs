@@ -72,7 +72,7 @@ impl Stats {
             ));
             *c
         });
-        if n <= 5 || n % 100 == 0 {
+        if n <= 5 || n.is_multiple_of(100) {
             tracing::warn!(service = %self.service, edge, reason, count = n, "rejected: {detail}");
         }
     }

@@ -375,13 +375,9 @@ fn absorb(cfg: &BridgeConfig, t: &mut Track, d: &Detection, stamp_ns: u64) {
             }
         }
     }
-    for k in 0..NUM_JOINTS {
-        if d.confidence[k] >= cfg.min_confidence {
-            t.memory[k] = Some((
-                heading.inverse() * (joints[k] - root),
-                stamp_ns,
-                d.confidence[k],
-            ));
+    for ((mem, p), c) in t.memory.iter_mut().zip(&joints).zip(&d.confidence) {
+        if *c >= cfg.min_confidence {
+            *mem = Some((heading.inverse() * (p - root), stamp_ns, *c));
         }
     }
     let dt = t
@@ -393,9 +389,8 @@ fn absorb(cfg: &BridgeConfig, t: &mut Track, d: &Detection, stamp_ns: u64) {
             f.reset();
         }
     }
-    for k in 0..NUM_JOINTS {
-        let v = t.filters[k].filter(joints[k].into(), dt);
-        joints[k] = Vector3::from(v);
+    for (f, p) in t.filters.iter_mut().zip(joints.iter_mut()) {
+        *p = Vector3::from(f.filter((*p).into(), dt));
     }
     t.hits = t.hits.saturating_add(1);
     if t.hits >= cfg.confirm_frames {
@@ -431,6 +426,7 @@ mod tests {
     }
 
     const MS: u64 = 1_000_000;
+    const FACING_ROBOT: f64 = std::f64::consts::PI;
 
     #[test]
     fn keeps_ids_and_confirms_after_three_hits() {
@@ -441,7 +437,7 @@ mod tests {
             tr.update(
                 &cfg,
                 i * 66 * MS,
-                vec![person_at(x, 0.0, 3.14), person_at(2.0, 2.0, 0.0)],
+                vec![person_at(x, 0.0, FACING_ROBOT), person_at(2.0, 2.0, 0.0)],
             );
         }
         assert_eq!(tr.tracks().len(), 2);
@@ -453,14 +449,14 @@ mod tests {
     #[test]
     fn implausible_bones_are_rejected() {
         let cfg = BridgeConfig::default();
-        let mut d = person_at(2.0, 0.0, 3.14);
+        let mut d = person_at(2.0, 0.0, FACING_ROBOT);
         for k in [18, 19, 4, 5, 10, 11, 15] {
             d.joints[k] += Vector3::new(0.0, 0.0, 1.5);
         }
         let errs = Tracker::new().update(&cfg, 0, vec![d]);
         assert_eq!(errs[0].1.reason(), "implausible_bones");
         // One bad joint is only masked.
-        let mut d = person_at(2.0, 0.0, 3.14);
+        let mut d = person_at(2.0, 0.0, FACING_ROBOT);
         d.joints[21] += Vector3::new(0.0, 0.0, 1.0);
         let mut tr = Tracker::new();
         assert!(tr.update(&cfg, 0, vec![d]).is_empty());
@@ -472,11 +468,11 @@ mod tests {
         let cfg = BridgeConfig::default();
         let mut tr = Tracker::new();
         for i in 0..4u64 {
-            let mut d = person_at(2.0, 0.0, 3.14);
+            let mut d = person_at(2.0, 0.0, FACING_ROBOT);
             d.detection_id = Some(7);
             tr.update(&cfg, i * 66 * MS, vec![d]);
         }
-        let mut far = person_at(2.0, 3.0, 3.14);
+        let mut far = person_at(2.0, 3.0, FACING_ROBOT);
         far.detection_id = Some(7);
         let errs = tr.update(&cfg, 4 * 66 * MS, vec![far]);
         assert_eq!(errs.len(), 1);
@@ -488,13 +484,13 @@ mod tests {
     fn short_gaps_are_filled_from_history() {
         let cfg = BridgeConfig::default();
         let mut tr = Tracker::new();
-        tr.update(&cfg, 0, vec![person_at(2.0, 0.0, 3.14)]);
-        let mut d = person_at(2.0, 0.0, 3.14);
+        tr.update(&cfg, 0, vec![person_at(2.0, 0.0, FACING_ROBOT)]);
+        let mut d = person_at(2.0, 0.0, FACING_ROBOT);
         d.confidence[j::R_WRIST] = 0.0;
         d.joints[j::R_WRIST] = Vector3::zeros();
         tr.update(&cfg, 100 * MS, vec![d]);
         let o = tr.tracks()[0].last().unwrap();
-        let truth = person_at(2.0, 0.0, 3.14).joints[j::R_WRIST];
+        let truth = person_at(2.0, 0.0, FACING_ROBOT).joints[j::R_WRIST];
         assert!((o.joints[j::R_WRIST] - truth).norm() < 0.01);
         assert!(o.confidence[j::R_WRIST] > 0.0 && o.confidence[j::R_WRIST] < 0.9);
     }

@@ -26,6 +26,8 @@ pub struct SimRobotConfig {
 
 impl Default for SimRobotConfig {
     fn default() -> Self {
+        // PAL's play_motion "home" pose, as published (1.5708, not π/2).
+        #[allow(clippy::approx_constant)]
         let home = [-1.1, 1.4679, 2.714, 1.7095, -1.5708, 1.3898, 0.0];
         let mut initial: HashMap<String, f64> = HashMap::new();
         for side in ["left", "right"] {
@@ -181,8 +183,8 @@ impl SimRobot {
                 target[i] = Some(self.cfg.head_sweep_rad * (w * self.t).sin());
             }
         }
-        for i in 0..self.names.len() {
-            let v = match target[i] {
+        for (i, tgt) in target.iter().enumerate() {
+            let v = match *tgt {
                 Some(x) => {
                     ((x - self.q[i]) / self.cfg.time_constant_s).clamp(-self.vmax[i], self.vmax[i])
                 }

@@ -194,7 +194,7 @@ pub async fn run(args: Args) -> Result<()> {
             if tty {
                 print!("\r{line}");
                 let _ = std::io::stdout().flush();
-            } else if ticks % 4 == 0 {
+            } else if ticks.is_multiple_of(4) {
                 println!("{line}");
             }
             ticks += 1;
@@ -206,14 +206,12 @@ pub async fn run(args: Args) -> Result<()> {
     // Let the services publish their final status, then stop them.
     stop_all(running).await;
     tokio::time::sleep(Duration::from_millis(300)).await;
-    let obs = observed.lock().unwrap_or_else(|e| e.into_inner());
-    let summary = summary(&obs, elapsed);
+    let summary = summary(&observed.lock().unwrap_or_else(|e| e.into_inner()), elapsed);
     println!("{}", render_summary(&summary));
     if let Some(p) = &args.summary_json {
         std::fs::write(p, serde_json::to_vec_pretty(&summary)?)
             .with_context(|| format!("writing {}", p.display()))?;
     }
-    drop(obs);
     bus.close().await?;
     if let Some(f) = failure {
         anyhow::bail!("{f} (logs in {})", log_dir.display());
