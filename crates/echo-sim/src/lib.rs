@@ -8,3 +8,4 @@
 
 pub mod perception;
 pub mod robot;
+pub mod scenario;

@@ -27,6 +27,9 @@ enum Command {
     /// List the services that are alive (from liveliness tokens).
     #[command(display_order = 11)]
     List(cmd::list::Args),
+    /// Measure latency percentiles: `bridge` (per frame) or `bus` (loopback round trip).
+    #[command(display_order = 30)]
+    Bench(cmd::bench::Args),
     /// Publish a scripted person as pose-estimator keypoints at 15 Hz.
     #[command(display_order = 20)]
     MockPerception(cmd::mock_perception::Args),
@@ -54,6 +57,10 @@ async fn main() -> Result<()> {
         Command::List(a) => {
             telemetry::init();
             cmd::list::run(a).await
+        }
+        Command::Bench(a) => {
+            telemetry::init();
+            cmd::bench::run(a).await
         }
         Command::MockPerception(a) => {
             telemetry::init();

@@ -1,5 +1,6 @@
 //! One module per `echoctl` verb.
 
+pub mod bench;
 pub mod demo;
 pub mod list;
 pub mod mock_perception;

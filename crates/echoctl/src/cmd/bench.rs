@@ -1,0 +1,161 @@
+//! `echoctl bench`: latency percentiles that criterion does not report.
+//!
+//! * `bridge`: processing time per keypoint frame of the perception bridge (median, p99).
+//! * `bus`: round trip of a skeleton-sized message between two Zenoh peer sessions over TCP on
+//!   loopback (A publishes, B echoes on another key, A times the return).
+
+use std::time::{Duration, Instant};
+
+use anyhow::Result;
+use echo_bus::config::free_ports;
+use echo_bus::stats::percentile_sorted;
+use echo_bus::{topics, Bus, BusArgs};
+use echo_perception::{BridgeConfig, PerceptionBridge};
+use echo_robot::RobotModel;
+use echo_sim::perception::{MockFormat, MockPerceptionConfig};
+use echo_sim::scenario::bridge_inputs;
+
+/// Options.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    /// What to measure: bridge or bus.
+    pub what: String,
+    /// Samples.
+    #[arg(long, default_value_t = 2000)]
+    pub samples: usize,
+}
+
+/// Run the chosen benchmark and print a one-line summary per case.
+pub async fn run(args: Args) -> Result<()> {
+    match args.what.as_str() {
+        "bridge" => bridge(args.samples),
+        "bus" => bus(args.samples).await,
+        other => anyhow::bail!("unknown benchmark '{other}' (bridge, bus)"),
+    }
+}
+
+fn report(name: &str, mut v: Vec<f64>) {
+    v.sort_by(f64::total_cmp);
+    println!(
+        "{name:<40} n={:<6} median {:8.3} ms   p99 {:8.3} ms   max {:8.3} ms",
+        v.len(),
+        percentile_sorted(&v, 50.0),
+        percentile_sorted(&v, 99.0),
+        v[v.len() - 1]
+    );
+}
+
+fn bridge(samples: usize) -> Result<()> {
+    let model = RobotModel::tiago_dual();
+    for (name, format, bystander) in [
+        ("bridge smpl24, 1 person", MockFormat::Smpl24Points, false),
+        ("bridge smpl24, 2 people", MockFormat::Smpl24Points, true),
+        (
+            "bridge coco17, 1 person",
+            MockFormat::Coco17PixelsDepth,
+            false,
+        ),
+    ] {
+        let inputs = bridge_inputs(
+            samples + 10,
+            MockPerceptionConfig {
+                format,
+                bystander,
+                ..Default::default()
+            },
+        );
+        let mut br = PerceptionBridge::new(BridgeConfig::default(), model.clone());
+        let mut times = Vec::with_capacity(samples);
+        let mut tracked = 0usize;
+        for (i, (js, f)) in inputs.iter().enumerate() {
+            br.on_joint_state(js);
+            let t = Instant::now();
+            let out = br.on_keypoints(f, f.header.stamp_ns + 30_000_000)?;
+            let dt = t.elapsed().as_secs_f64() * 1e3;
+            if out.skeletons.iter().any(|s| !s.tracks.is_empty()) {
+                tracked += 1;
+            }
+            std::hint::black_box(out);
+            if i >= 10 {
+                times.push(dt);
+            }
+        }
+        // The script loops every 13 s (the person jumps back to the start), and at 0.9 m with the
+        // head turned part of the body leaves a 640 × 480 image: those frames track nobody.
+        if tracked < inputs.len() / 2 {
+            anyhow::bail!(
+                "only {tracked} of {} frames produced a tracked person",
+                inputs.len()
+            );
+        }
+        report(
+            &format!("{name} ({}% tracked)", 100 * tracked / inputs.len()),
+            times,
+        );
+    }
+    Ok(())
+}
+
+async fn bus(samples: usize) -> Result<()> {
+    let ports = free_ports(2);
+    let a = Bus::open(
+        &BusArgs::loopback("bench", &[ports[0]], &[ports[1]]),
+        "bench-a",
+    )
+    .await?;
+    let b = Bus::open(
+        &BusArgs::loopback("bench", &[ports[1]], &[ports[0]]),
+        "bench-b",
+    )
+    .await?;
+    let r = a.robot().clone();
+    // A skeleton-sized payload: one real bridge output.
+    let frame = bridge_inputs(12, MockPerceptionConfig::default());
+    let mut br = PerceptionBridge::new(BridgeConfig::default(), RobotModel::tiago_dual());
+    let mut sample = None;
+    for (js, f) in &frame {
+        br.on_joint_state(js);
+        sample = br
+            .on_keypoints(f, f.header.stamp_ns + 1)?
+            .skeletons
+            .pop()
+            .or(sample);
+    }
+    let mut sample = sample.ok_or_else(|| anyhow::anyhow!("no skeleton to send"))?;
+    sample.header.robot_id = r.to_string();
+    let size = echo_msgs::encode(&sample).len();
+    let ping = topics::humans(&r);
+    // The echo goes back on the same kind of topic of a second robot id.
+    let echo_robot = echo_bus::RobotId::new("bench-echo")?;
+    let pong = topics::humans(&echo_robot);
+    let a_pub = a.publisher(&ping).await?;
+    let a_sub = a.subscribe(&pong).await?;
+    let b_sub = b.subscribe(&ping).await?;
+    let b_pub = b.publisher(&pong).await?;
+    let echo = tokio::spawn(async move {
+        while let Some(mut m) = b_sub.recv().await {
+            m.msg.header.robot_id = "bench-echo".into();
+            if b_pub.put(m.msg).await.is_err() {
+                break;
+            }
+        }
+    });
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let mut times = Vec::with_capacity(samples);
+    for i in 0..samples + 50 {
+        let t = Instant::now();
+        a_pub.put(sample.clone()).await?;
+        match tokio::time::timeout(Duration::from_secs(1), a_sub.recv()).await {
+            Ok(Some(_)) => {
+                if i >= 50 {
+                    times.push(t.elapsed().as_secs_f64() * 1e3);
+                }
+            }
+            _ => anyhow::bail!("echo lost after {i} round trips"),
+        }
+    }
+    report(&format!("bus round trip ({size} B JSON)"), times);
+    echo.abort();
+    a.close().await?;
+    b.close().await
+}
