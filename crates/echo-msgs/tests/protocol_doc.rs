@@ -29,7 +29,11 @@ fn protocol_examples_are_valid() {
     while let Some(line) = lines.next() {
         if let Some(kind) = line.strip_prefix("### ") {
             assert_eq!(lines.next(), Some("```json"), "{kind}: example must follow");
-            let json: String = lines.by_ref().take_while(|l| *l != "```").collect::<Vec<_>>().join("\n");
+            let json: String = lines
+                .by_ref()
+                .take_while(|l| *l != "```")
+                .collect::<Vec<_>>()
+                .join("\n");
             check(kind, &json).unwrap();
             kinds.push(kind.to_string());
         }
@@ -46,6 +50,9 @@ fn protocol_examples_are_valid() {
         EStop::KIND,
         ServiceStatus::KIND,
     ] {
-        assert!(kinds.iter().any(|x| x == k), "docs/PROTOCOL.md has no example of {k}");
+        assert!(
+            kinds.iter().any(|x| x == k),
+            "docs/PROTOCOL.md has no example of {k}"
+        );
     }
 }
