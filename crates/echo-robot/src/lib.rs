@@ -1,9 +1,13 @@
-//! The TIAGo++ robot model: a kinematic tree loaded from URDF (urdf-rs), joint limits and
-//! soft limits, and forward kinematics with nalgebra (f64).
+//! The TIAGo++ robot model: a kinematic tree loaded from URDF (urdf-rs), joint groups, joint
+//! limits (position and velocity from the URDF, acceleration and jerk chosen in [`limits`]),
+//! forward kinematics with nalgebra (f64), and a capsule model for collision distances.
 //!
 //! The embedded description is `robots/tiago_dual/tiago_dual.urdf`; any other URDF (e.g. a robot's
 //! own calibrated `/robot_description`) loads the same way with [`RobotModel::from_urdf_str`].
 
+pub mod collision;
+pub mod groups;
+pub mod limits;
 mod model;
 
 pub use model::{JointKind, JointLimits, JointSpec, JointValues, RobotError, RobotModel};
