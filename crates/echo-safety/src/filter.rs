@@ -265,9 +265,23 @@ impl Filter {
             let l = &self.limits[j];
             let a_req = (vdes[k] - st.v) / self.velocity_time_constant(l);
             let d = a_req - st.a;
-            let (pk_lo, pk_hi) = velocity_peak_bounds(st, l, s * l.velocity, dt);
-            let lo_a = (st.a - l.jerk * dt).max(-l.acceleration).max(pk_lo);
-            let hi_a = (st.a + l.jerk * dt).min(l.acceleration).min(pk_hi);
+            // Hard set: jerk, acceleration and the velocity peak under V (never empty from a
+            // state the filter produced). Soft set: the peak under the scaled speed s·V; when a
+            // scale drop makes it unreachable this cycle, take the hard point nearest to it.
+            let (hard_lo, hard_hi) = velocity_peak_bounds(st, l, l.velocity, dt);
+            let (soft_lo, soft_hi) = velocity_peak_bounds(st, l, s * l.velocity, dt);
+            let lo_h = (st.a - l.jerk * dt).max(-l.acceleration).max(hard_lo);
+            let hi_h = (st.a + l.jerk * dt).min(l.acceleration).min(hard_hi);
+            if lo_h > hi_h {
+                return None;
+            }
+            let (mut lo_a, mut hi_a) = (lo_h.max(soft_lo), hi_h.min(soft_hi));
+            if lo_a > hi_a {
+                let x = if soft_hi < lo_h { lo_h } else { hi_h };
+                lo_a = x;
+                hi_a = x;
+                limited = true;
+            }
             bounds.push((a_req, lo_a, hi_a));
             // a(f) = a + f·d ∈ [lo_a, hi_a]
             if d.abs() < 1e-15 {
@@ -289,14 +303,9 @@ impl Filter {
             let st = self.state[j];
             let (a_req, lo_a, hi_a) = bounds[k];
             let a_next = if coordinated {
-                st.a + hi_f * (a_req - st.a)
-            } else if lo_a <= hi_a {
-                a_req.clamp(lo_a, hi_a)
+                (st.a + hi_f * (a_req - st.a)).clamp(lo_a, hi_a)
             } else {
-                // Only reachable from a state outside the invariant: decelerate as hard as the
-                // jerk limit allows.
-                (st.a - l_jerk(&self.limits[j], dt) * st.v.signum())
-                    .clamp(-self.limits[j].acceleration, self.limits[j].acceleration)
+                a_req.clamp(lo_a, hi_a)
             };
             candidate.push(integrate(st, a_next, dt));
         }
@@ -332,10 +341,6 @@ pub fn envelope_speed(room: f64, l: &JointKinematicLimits, dt: f64) -> f64 {
     let b = a / (2.0 * l.jerk) + dt;
     // v²/(2a) + b·v − room = 0
     a * (-b + (b * b + 2.0 * room / a).sqrt())
-}
-
-fn l_jerk(l: &JointKinematicLimits, dt: f64) -> f64 {
-    l.jerk * dt
 }
 
 #[cfg(test)]

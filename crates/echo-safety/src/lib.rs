@@ -18,4 +18,4 @@ pub mod separation;
 pub mod supervisor;
 
 pub use config::SafetyConfig;
-// supervisor exports below
+pub use supervisor::{Supervisor, Tick};
