@@ -401,6 +401,15 @@ impl Supervisor {
                 sep.min_distance, sep.protective, scale
             ));
         }
+        // At or inside the protective distance: a protective stop (brake to rest), not a crawl.
+        let stopping = if scale == 0.0 && sep.min_distance.is_finite() {
+            reasons.push(
+                "protective stop: a person is within the protective separation distance".into(),
+            );
+            true
+        } else {
+            stopping
+        };
         let mut scales: Vec<f64> = vec![scale; n_groups];
         for (g, group) in self.filter.groups().iter().enumerate() {
             if group.name.starts_with("arm") && sep.arm_scale < 1.0 {
