@@ -332,13 +332,7 @@ mod tests {
     fn home_pose_is_free_and_crossed_arms_are_not() {
         let m = RobotModel::tiago_dual();
         let body = RobotBody::tiago(&m).unwrap();
-        let home = [-1.1, 1.4679, 2.714, 1.7095, -1.5708, 1.3898, 0.0];
-        let mut pairs: Vec<(String, f64)> = vec![("torso_lift_joint".into(), 0.15)];
-        for side in ["left", "right"] {
-            for (i, v) in home.iter().enumerate() {
-                pairs.push((format!("arm_{side}_{}_joint", i + 1), *v));
-            }
-        }
+        let pairs = crate::home_pose();
         let q = m
             .values_from(pairs.iter().map(|(n, v)| (n.as_str(), *v)))
             .unwrap();

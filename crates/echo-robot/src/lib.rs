@@ -15,6 +15,24 @@ pub use model::{JointKind, JointLimits, JointSpec, JointValues, RobotError, Robo
 /// The project's TIAGo++ description, embedded at build time.
 pub const TIAGO_DUAL_URDF: &str = include_str!("../../../robots/tiago_dual/tiago_dual.urdf");
 
+/// PAL's play_motion "home" arm pose (joints 1–7, both arms), as published (1.5708, not π/2).
+#[allow(clippy::approx_constant)]
+pub const HOME_ARM: [f64; 7] = [-1.1, 1.4679, 2.714, 1.7095, -1.5708, 1.3898, 0.0];
+
+/// Torso height of the home pose, metres.
+pub const HOME_TORSO: f64 = 0.15;
+
+/// (joint, value) pairs of the home pose: both arms at [`HOME_ARM`], torso at [`HOME_TORSO`].
+pub fn home_pose() -> Vec<(String, f64)> {
+    let mut v = vec![("torso_lift_joint".to_string(), HOME_TORSO)];
+    for side in ["left", "right"] {
+        for (i, q) in HOME_ARM.iter().enumerate() {
+            v.push((format!("arm_{side}_{}_joint", i + 1), *q));
+        }
+    }
+    v
+}
+
 /// Frame names used across Echo.
 pub mod frames {
     /// Robot root on the floor.

@@ -125,8 +125,8 @@ pub fn kinematic_limits(
                     return Err(bad(&format!("{name} limit must be positive, not {v}")));
                 }
             }
-            if !(lim.lower < lim.upper) || lim.lower < l.lower - 1e-9 || lim.upper > l.upper + 1e-9
-            {
+            let empty = lim.lower.partial_cmp(&lim.upper) != Some(std::cmp::Ordering::Less);
+            if empty || lim.lower < l.lower - 1e-9 || lim.upper > l.upper + 1e-9 {
                 return Err(bad(
                     "position range must be non-empty and inside the URDF's hard limits",
                 ));

@@ -7,8 +7,6 @@
 use echo_robot::RobotModel;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
-const HOME_ARM: [f64; 7] = [-1.1, 1.4679, 2.714, 1.7095, -1.5708, 1.3898, 0.0];
-
 fn check(
     m: &RobotModel,
     q: &echo_robot::JointValues,
@@ -71,12 +69,7 @@ fn hand_checked_poses() {
         1e-5,
         1e-5,
     );
-    let mut pairs: Vec<(String, f64)> = vec![("torso_lift_joint".into(), 0.15)];
-    for side in ["left", "right"] {
-        for (i, v) in HOME_ARM.iter().enumerate() {
-            pairs.push((format!("arm_{side}_{}_joint", i + 1), *v));
-        }
-    }
+    let pairs = echo_robot::home_pose();
     let home = m
         .values_from(pairs.iter().map(|(n, v)| (n.as_str(), *v)))
         .unwrap();

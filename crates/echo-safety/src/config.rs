@@ -170,7 +170,7 @@ impl SafetyConfig {
         if self.point_every == 0 {
             return Err("point_every must be at least 1".into());
         }
-        if !(self.self_collision_margin_m >= 0.0) {
+        if self.self_collision_margin_m.is_nan() || self.self_collision_margin_m < 0.0 {
             return Err("self_collision_margin_m must be ≥ 0".into());
         }
         Ok(())

@@ -133,13 +133,11 @@ proptest! {
         let mut now = t0;
         sup.on_joint_state(&state_msg(&joints, &q0), now);
         let mut prev_first: Option<Vec<(f64, f64)>> = None;
-        let mut stamp = 1u64;
-        for (targets, duration, ticks) in &plans {
+        for (stamp, (targets, duration, ticks)) in (1u64..).zip(plans.iter()) {
             // A plan that starts where the robot is commanded to be, then jumps to `targets`.
             let here: Vec<f64> = sup.filter().state().iter().map(|s| s.q).collect();
             let mut h = Header::new("tiago", "forecaster", "odom");
             h.stamp_ns = stamp;
-            stamp += 1;
             let plan = RobotPlan {
                 header: h,
                 mode: ControlMode::Forecast,

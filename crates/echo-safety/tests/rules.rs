@@ -16,8 +16,6 @@ struct Rig {
     stamp: u64,
 }
 
-const HOME: [f64; 7] = [-1.1, 1.4679, 2.714, 1.7095, -1.5708, 1.3898, 0.0];
-
 impl Rig {
     fn new(cfg: SafetyConfig) -> Rig {
         let sup = Supervisor::new(cfg, RobotModel::tiago_dual()).unwrap();
@@ -28,16 +26,11 @@ impl Rig {
             now: Instant::now(),
             stamp: 1,
         };
+        let home = echo_robot::home_pose();
         let q: Vec<f64> = r
             .joints
             .iter()
-            .map(|j| match j.as_str() {
-                "torso_lift_joint" => 0.15,
-                j if j.starts_with("arm_") => {
-                    HOME[j.chars().nth(j.len() - 7).unwrap().to_digit(10).unwrap() as usize - 1]
-                }
-                _ => 0.0,
-            })
+            .map(|j| home.iter().find(|(n, _)| n == j).map_or(0.0, |(_, v)| *v))
             .collect();
         r.feed_state(&q);
         r

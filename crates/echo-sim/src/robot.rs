@@ -26,16 +26,7 @@ pub struct SimRobotConfig {
 
 impl Default for SimRobotConfig {
     fn default() -> Self {
-        // PAL's play_motion "home" pose, as published (1.5708, not π/2).
-        #[allow(clippy::approx_constant)]
-        let home = [-1.1, 1.4679, 2.714, 1.7095, -1.5708, 1.3898, 0.0];
-        let mut initial: HashMap<String, f64> = HashMap::new();
-        for side in ["left", "right"] {
-            for (i, v) in home.iter().enumerate() {
-                initial.insert(format!("arm_{side}_{}_joint", i + 1), *v);
-            }
-        }
-        initial.insert("torso_lift_joint".into(), 0.15);
+        let initial: HashMap<String, f64> = echo_robot::home_pose().into_iter().collect();
         SimRobotConfig {
             time_constant_s: 0.08,
             rate_hz: 100.0,
