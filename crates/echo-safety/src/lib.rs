@@ -17,5 +17,7 @@ pub mod plan;
 pub mod separation;
 pub mod supervisor;
 
+pub mod bench_support;
+
 pub use config::SafetyConfig;
 pub use supervisor::{Supervisor, Tick};

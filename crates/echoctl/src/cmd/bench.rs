@@ -1,6 +1,7 @@
 //! `echoctl bench`: latency percentiles that criterion does not report.
 //!
 //! * `bridge`: processing time per keypoint frame of the perception bridge (median, p99).
+//! * `safety`: one safety cycle (17 joints, separation, self-collision, rollout to rest).
 //! * `bus`: round trip of a skeleton-sized message between two Zenoh peer sessions over TCP on
 //!   loopback (A publishes, B echoes on another key, A times the return).
 
@@ -18,7 +19,7 @@ use echo_sim::scenario::bridge_inputs;
 /// Options.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
-    /// What to measure: bridge or bus.
+    /// What to measure: bridge, safety or bus.
     pub what: String,
     /// Samples.
     #[arg(long, default_value_t = 2000)]
@@ -30,7 +31,11 @@ pub async fn run(args: Args) -> Result<()> {
     match args.what.as_str() {
         "bridge" => bridge(args.samples),
         "bus" => bus(args.samples).await,
-        other => anyhow::bail!("unknown benchmark '{other}' (bridge, bus)"),
+        "safety" => {
+            safety(args.samples);
+            Ok(())
+        }
+        other => anyhow::bail!("unknown benchmark '{other}' (bridge, bus, safety)"),
     }
 }
 
@@ -94,6 +99,24 @@ fn bridge(samples: usize) -> Result<()> {
         );
     }
     Ok(())
+}
+
+fn safety(samples: usize) {
+    let (mut sup, mut feed) = echo_safety::bench_support::moving_scene();
+    let mut now = Instant::now();
+    let mut times = Vec::with_capacity(samples);
+    for i in 0..samples + 50 {
+        now += Duration::from_millis(20);
+        feed(&mut sup, now);
+        let t = Instant::now();
+        let tick = sup.tick(now);
+        let dt = t.elapsed().as_secs_f64() * 1e3;
+        std::hint::black_box(tick);
+        if i >= 50 {
+            times.push(dt);
+        }
+    }
+    report("safety cycle, 17 joints, person in view", times);
 }
 
 async fn bus(samples: usize) -> Result<()> {

@@ -65,7 +65,12 @@ const SERVICES: &[(&str, Launch)] = &[
 ];
 
 /// Services that exist as tasks in this binary (for `--single-process`).
-const IN_PROCESS: &[&str] = &["mock-robot", "perception-bridge", "mock-perception"];
+const IN_PROCESS: &[&str] = &[
+    "mock-robot",
+    "perception-bridge",
+    "safety",
+    "mock-perception",
+];
 
 #[derive(Default)]
 struct KeyStats {
@@ -80,6 +85,7 @@ struct Observed {
     status: BTreeMap<String, serde_json::Value>,
     partner_frames: u64,
     human_frames: u64,
+    safety: Option<String>,
 }
 
 enum Running {
@@ -164,6 +170,8 @@ pub async fn run(args: Args) -> Result<()> {
         ));
     }
 
+    // Count from now: the rates in the summary are over the demo's own duration.
+    *observed.lock().unwrap_or_else(|e| e.into_inner()) = Observed::default();
     let started = Instant::now();
     let mut stop = shutdown::on_signals();
     if failure.is_none() {
@@ -266,6 +274,8 @@ fn service_flags(name: &str, args: &Args) -> Vec<String> {
             v
         }
         "mock-robot" => vec!["--head-sweep".into(), "0.15".into()],
+        // The robot interface is required: without it the safety service holds the robot.
+        "safety" => vec!["--require".into(), "mock-robot".into()],
         _ => vec![],
     }
 }
@@ -293,6 +303,10 @@ fn start_task(name: &str, net: &BusArgs, args: &Args) -> Result<Running> {
         "perception-bridge" => {
             let a = Wrap::<perception_bridge::Args>::try_parse_from(&argv)?.inner;
             tokio::spawn(perception_bridge::serve(a, stop))
+        }
+        "safety" => {
+            let a = Wrap::<safety::Args>::try_parse_from(&argv)?.inner;
+            tokio::spawn(safety::serve(a, stop))
         }
         other => anyhow::bail!("{other} cannot run in-process"),
     };
@@ -351,6 +365,15 @@ async fn subscribe_all(
                         .insert(short.trim_start_matches("status/").to_string(), v.clone());
                 }
             }
+            if short == "safety/status" {
+                if let Some(st) = v
+                    .as_ref()
+                    .and_then(|v| v.get("state"))
+                    .and_then(|s| s.as_str())
+                {
+                    o.safety = Some(st.to_string());
+                }
+            }
             if short == "humans" {
                 o.human_frames += 1;
                 if v.as_ref()
@@ -392,8 +415,13 @@ fn status_line(t: f64, o: &Observed) -> String {
         .and_then(|v| v.as_f64())
         .map(|m| format!(" bridge {m:.2} ms"))
         .unwrap_or_default();
+    let safety = o
+        .safety
+        .as_ref()
+        .map(|s| format!("  safety {s}"))
+        .unwrap_or_default();
     format!(
-        "t={t:5.1}s  keypoints {:5.1} Hz  humans {:5.1} Hz (partner {:>3})  robot/state {:5.1} Hz{latency}  rejected {rejected}  dropped {dropped}   ",
+        "t={t:5.1}s  keypoints {:5.1} Hz  humans {:5.1} Hz (partner {:>3})  robot/state {:5.1} Hz{latency}{safety}  rejected {rejected}  dropped {dropped}   ",
         rate("perception/raw"),
         rate("humans"),
         o.partner_frames,
@@ -445,6 +473,7 @@ fn summary(o: &Observed, elapsed: f64) -> serde_json::Value {
         "keys": keys_json,
         "services": services,
         "humans": { "frames": o.human_frames, "partner_frames": o.partner_frames },
+        "safety_state": o.safety,
         "rejected_total": rejected,
         "dropped_total": dropped,
     })
@@ -501,6 +530,9 @@ fn render_summary(s: &serde_json::Value) -> String {
                 total(&v["dropped"])
             ));
         }
+    }
+    if let Some(st) = s["safety_state"].as_str() {
+        out.push_str(&format!("safety: final state {st}\n"));
     }
     out.push_str(&format!(
         "partner seen in {} of {} skeleton frames; {} inputs rejected, {} dropped in total",
