@@ -3,8 +3,11 @@
 //!
 //! World convention: REP-103, z up, metres.
 
+pub mod posing;
 pub mod rotation;
 pub mod scripted;
 pub mod skeleton;
+pub mod synth;
+pub mod text;
 
 pub use skeleton::{Body, Pose, NUM_JOINTS, PARENTS};
