@@ -491,7 +491,7 @@ impl Scene {
                 );
                 let shoulder_b = Vector3::new(
                     xb - 0.02,
-                    0.18 * if hand_right { -1.0 } else { 1.0 } * -1.0,
+                    if hand_right { 0.18 } else { -0.18 },
                     bodies[1].pelvis_height() * 1.5,
                 );
                 let tap = pulse(t, t_tap, t_tap + 0.5, 0.35) + 0.0 * (2.0 * PI * 3.0 * t).sin();

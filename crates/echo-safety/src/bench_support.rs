@@ -67,7 +67,7 @@ pub fn moving_scene() -> (Supervisor, impl FnMut(&mut Supervisor, Instant)) {
     let feed = move |s: &mut Supervisor, now: Instant| {
         let q: Vec<f64> = s.filter().state().iter().map(|x| x.q).collect();
         s.on_joint_state(&js(&joints, &q), now);
-        if cycle % 3 == 0 {
+        if cycle.is_multiple_of(3) {
             let t = cycle as f64 * 0.02;
             let mut h = Header::new("tiago", "forecaster", "odom");
             h.stamp_ns = cycle + 1;
