@@ -6,6 +6,7 @@
 pub mod posing;
 pub mod rotation;
 pub mod scripted;
+pub mod sensors;
 pub mod skeleton;
 pub mod synth;
 pub mod text;

@@ -18,66 +18,20 @@ use nalgebra::Vector3;
 
 use crate::config::SeparationConfig;
 
-/// Human body parts of the capsule model.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum HumanPart {
-    /// Head (sphere).
-    Head,
-    /// Pelvis to neck.
-    Torso,
-    /// Shoulder to elbow.
-    UpperArm,
-    /// Elbow to wrist.
-    Forearm,
-    /// Hand (sphere beyond the wrist).
-    Hand,
-    /// Hip to knee, knee to ankle.
-    Leg,
-}
+pub use echo_motion::sensors::BodyPart as HumanPart;
 
-/// Capsules of one person from SMPL-22 joints; radii scale with the body (pelvis–neck length
-/// relative to 0.57 m).
+/// Capsules of one person from SMPL-22 joints (the shared body model of `echo_motion::sensors`).
 pub fn human_capsules(joints: &[[f64; 3]]) -> Vec<(HumanPart, Capsule)> {
-    if joints.len() < 22 {
-        return vec![];
-    }
-    let p = |i: usize| Vector3::from(joints[i]);
-    let s = ((p(12) - p(0)).norm() / 0.57).clamp(0.6, 1.5);
-    let cap = |a: usize, b: usize, r: f64| Capsule {
-        a: p(a),
-        b: p(b),
-        radius: r * s,
-    };
-    let mut out = vec![
-        (HumanPart::Head, Capsule::sphere(p(15), 0.11 * s)),
-        (HumanPart::Torso, cap(0, 12, 0.16)),
-        (HumanPart::UpperArm, cap(16, 18, 0.05)),
-        (HumanPart::UpperArm, cap(17, 19, 0.05)),
-        (HumanPart::Forearm, cap(18, 20, 0.04)),
-        (HumanPart::Forearm, cap(19, 21, 0.04)),
-        (HumanPart::Leg, cap(1, 4, 0.07)),
-        (HumanPart::Leg, cap(2, 5, 0.07)),
-        (HumanPart::Leg, cap(4, 7, 0.05)),
-        (HumanPart::Leg, cap(5, 8, 0.05)),
-    ];
-    for (w, e) in [(20, 18), (21, 19)] {
-        let dir = (p(w) - p(e))
-            .try_normalize(1e-9)
-            .unwrap_or_else(Vector3::zeros);
-        out.push((
-            HumanPart::Hand,
-            Capsule::sphere(p(w) + dir * 0.08 * s, 0.05 * s),
-        ));
-    }
-    out
+    let p: Vec<Vector3<f64>> = joints.iter().map(|x| Vector3::from(*x)).collect();
+    echo_motion::sensors::body_capsules(&p)
 }
 
 /// Whether the end effectors may approach `part` during `interaction`.
 pub fn contact_allowed(interaction: Option<Interaction>, part: HumanPart) -> bool {
     match interaction {
         Some(i) if i.is_contact() => match part {
-            HumanPart::Hand | HumanPart::Forearm => true,
-            HumanPart::UpperArm | HumanPart::Torso => {
+            HumanPart::Hand(_) | HumanPart::Forearm(_) => true,
+            HumanPart::UpperArm(_) | HumanPart::Torso => {
                 matches!(i, Interaction::Hug | Interaction::ShoulderTap)
             }
             _ => false,
@@ -178,7 +132,7 @@ mod tests {
     fn hand_at(x: f64) -> Vec<(HumanPart, Capsule)> {
         vec![
             (
-                HumanPart::Hand,
+                HumanPart::Hand(false),
                 Capsule::sphere(Vector3::new(x, 0.0, 1.0), 0.05),
             ),
             (
