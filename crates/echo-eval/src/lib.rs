@@ -1,0 +1,10 @@
+//! Evaluation: metrics as the multi-person forecasting benchmarks compute them, windows cut
+//! from interactions, a [`Predictor`] trait that every forecaster implements, the zero- and
+//! constant-velocity baselines, and a harness that prints the paper-style table.
+
+pub mod harness;
+pub mod metrics;
+pub mod window;
+
+pub use harness::{evaluate, Report};
+pub use window::{windows, Predictor, Window, HORIZONS_S, OBS_FRAMES, PRED_FRAMES, RATE_HZ};
