@@ -3,6 +3,7 @@
 //!
 //! World convention: REP-103, z up, metres.
 
+pub mod dataset;
 pub mod posing;
 pub mod rotation;
 pub mod scripted;

@@ -54,13 +54,17 @@ pub fn pose(body: &Body, it: &Intent) -> Pose {
     p.local[j::SPINE1] = bend;
     p.local[j::SPINE2] = bend;
     p.local[j::SPINE3] = bend;
-    // Legs: a simple gait.
+    // Legs: a gait whose hip swing moves the stance foot back by one step (0.6 m) per half
+    // cycle, so that with the phase driven by the distance walked the stance foot stays nearly
+    // put; the swing knee bends to lift the foot off the floor.
     if amp > 0.0 {
+        let leg = body.offsets[j::L_KNEE].norm() + body.offsets[j::L_ANKLE].norm();
+        let swing_amp = (0.3 / leg).clamp(0.0, 0.9).asin();
         for (hip, knee, sign) in [(j::L_HIP, j::L_KNEE, 1.0), (j::R_HIP, j::R_KNEE, -1.0)] {
             let s = phase.sin() * sign;
-            p.local[hip] = UnitQuaternion::from_euler_angles(0.0, -0.35 * s * amp, 0.0);
-            p.local[knee] =
-                UnitQuaternion::from_euler_angles(0.0, 0.25 * (1.0 + s).max(0.0) * amp, 0.0);
+            let lift = (phase.cos() * sign).max(0.0);
+            p.local[hip] = UnitQuaternion::from_euler_angles(0.0, -swing_amp * s * amp, 0.0);
+            p.local[knee] = UnitQuaternion::from_euler_angles(0.0, 1.1 * lift * lift * amp, 0.0);
         }
     }
     // Arms.

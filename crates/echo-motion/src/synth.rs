@@ -194,6 +194,9 @@ impl Noise {
     }
 }
 
+/// Step length of the gait, metres (a cadence of ≈ 1.8 steps/s at 1 m/s).
+pub const STEP_M: f64 = 0.6;
+
 /// Generate the clip for `params`.
 pub fn generate(params: &ClipParams) -> Clip {
     let mut rng = rand::rngs::StdRng::seed_from_u64(params.seed ^ 0x9e37_79b9_7f4a_7c15);
@@ -266,7 +269,8 @@ impl Scene {
         }
     }
 
-    /// Where A and B stand when they meet, and when A arrives there.
+    /// Where A and B stand when they meet, when they arrive, the gait amplitude and the gait
+    /// phase (driven by the distance walked, so that the stance foot stays planted).
     fn approach(&self, meet: f64, t: f64) -> (f64, f64, f64, f64) {
         let d = self.p.distance.max(meet);
         let walk = (d - meet) / 2.0;
@@ -289,11 +293,15 @@ impl Scene {
         )
     }
 
+    /// Gait phase after walking `dist` metres: one step (half a cycle) per [`STEP_M`].
+    fn phase(dist: f64) -> f64 {
+        PI * dist / STEP_M
+    }
+
     fn intents(&self, t: f64, bodies: &[Body; 2]) -> [Intent; 2] {
         let p = &self.p;
         let amp = p.amplitude;
         let hand_right = p.right_handed;
-        let phase = 2.0 * PI * 0.9 * t;
         match self.kind {
             Interaction::Handshake | Interaction::HighFive | Interaction::Handover => {
                 // Closer for shorter people: both must reach the meeting point.
@@ -307,8 +315,8 @@ impl Scene {
                 let (xa, xb, t_arrive, gait) = self.approach(meet, t);
                 let mut a = Intent::standing(xa, 0.0, 0.0);
                 let mut b = Intent::standing(xb, 0.0, PI);
-                a.gait = (phase, gait);
-                b.gait = (phase + 1.0, gait);
+                a.gait = (Self::phase(xa), gait);
+                b.gait = (Self::phase(self.p.distance.max(meet) - xb), gait);
                 let ha = bodies[0].pelvis_height();
                 let hb = bodies[1].pelvis_height();
                 // Hands meet between them, where both reach: at the lower person's comfort height.
@@ -369,7 +377,7 @@ impl Scene {
                 };
                 let mut a = Intent::standing(xa, 0.0, 0.0);
                 let mut b = Intent::standing(xb, 0.0, PI);
-                a.gait = (phase, gait);
+                a.gait = (Self::phase(xa), gait);
                 let start = t_arrive
                     + if self.kind == Interaction::ApproachGreet {
                         0.1
@@ -404,8 +412,8 @@ impl Scene {
                 let (xa, xb, t_arrive, gait) = self.approach(meet, t);
                 let mut a = Intent::standing(xa, 0.0, 0.0);
                 let mut b = Intent::standing(xb, 0.0, PI);
-                a.gait = (phase, gait);
-                b.gait = (phase + 1.0, gait);
+                a.gait = (Self::phase(xa), gait);
+                b.gait = (Self::phase(self.p.distance.max(meet) - xb), gait);
                 let t1 = t_arrive - 0.4;
                 let hold = 1.4 + 0.6 * self.r[2];
                 for (me, (it, body)) in [(&mut a, &bodies[0]), (&mut b, &bodies[1])]
@@ -481,7 +489,10 @@ impl Scene {
                 let t_walk = stop / p.speed;
                 let xa = stop * ramp(t, t0, t0 + t_walk);
                 let mut a = Intent::standing(xa, 0.0, 0.0);
-                a.gait = (phase, if t > t0 && t < t0 + t_walk { 1.0 } else { 0.0 });
+                a.gait = (
+                    Self::phase(xa),
+                    if t > t0 && t < t0 + t_walk { 1.0 } else { 0.0 },
+                );
                 let t_tap = t0 + t_walk + 0.1;
                 let turn = ramp(t, t_tap + p.delay, t_tap + p.delay + 0.9);
                 let mut b = Intent::standing(
@@ -566,8 +577,8 @@ impl Scene {
                 let avoid = ((0.75 - lane) / 2.0).max(0.0) * (-((t - t_cross) / 0.9).powi(2)).exp();
                 let mut a = Intent::standing(xa, -lane / 2.0 - avoid, 0.0);
                 let mut b = Intent::standing(xb, lane / 2.0 + avoid, PI);
-                a.gait = (phase, 1.0);
-                b.gait = (phase + 2.0, 1.0);
+                a.gait = (Self::phase(xa), 1.0);
+                b.gait = (Self::phase(start - xb) + 1.0, 1.0);
                 let head_b = Vector3::new(xb, b.root_xy[1], bodies[1].pelvis_height() * 1.7);
                 let head_a = Vector3::new(xa, a.root_xy[1], bodies[0].pelvis_height() * 1.7);
                 if t < t_cross {
@@ -697,4 +708,88 @@ mod tests {
             assert!(p.delay >= tr.delay[0].1);
         }
     }
+}
+
+/// Dataset splits: disjoint seed ranges; the held-out split also draws from the held-out ranges.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Split {
+    /// Training.
+    Train,
+    /// Validation.
+    Val,
+    /// Test.
+    Test,
+    /// Out-of-range generalisation test.
+    HeldOut,
+}
+
+impl Split {
+    /// First seed of the split.
+    pub fn seed_base(self) -> u64 {
+        match self {
+            Split::Train => 0,
+            Split::Val => 1_000_000_000,
+            Split::Test => 2_000_000_000,
+            Split::HeldOut => 3_000_000_000,
+        }
+    }
+
+    /// Parameter ranges of the split.
+    pub fn ranges(self) -> ParamRanges {
+        match self {
+            Split::HeldOut => ParamRanges::held_out(),
+            _ => ParamRanges::train(),
+        }
+    }
+
+    /// Parse "train", "val", "test", "held-out".
+    pub fn parse(s: &str) -> Option<Split> {
+        match s {
+            "train" => Some(Split::Train),
+            "val" => Some(Split::Val),
+            "test" => Some(Split::Test),
+            "held-out" | "heldout" => Some(Split::HeldOut),
+            _ => None,
+        }
+    }
+
+    /// Parameters of clip `i` of the split (types cycle through [`KINDS`]).
+    pub fn clip(self, i: u64) -> ClipParams {
+        let kind = KINDS[(i % KINDS.len() as u64) as usize];
+        ClipParams::sample(kind, &self.ranges(), self.seed_base() + i)
+    }
+}
+
+/// Generate clips `range` of a split on `threads` threads, calling `progress` after each clip.
+pub fn generate_split(
+    split: Split,
+    range: std::ops::Range<u64>,
+    threads: usize,
+    progress: &(dyn Fn() + Sync),
+) -> Vec<Clip> {
+    let ids: Vec<u64> = range.collect();
+    let threads = threads.max(1);
+    let chunk = ids.len().div_ceil(threads).max(1);
+    let mut out: Vec<Vec<Clip>> = vec![];
+    std::thread::scope(|s| {
+        let handles: Vec<_> = ids
+            .chunks(chunk)
+            .map(|c| {
+                s.spawn(move || {
+                    c.iter()
+                        .map(|i| {
+                            let clip = generate(&split.clip(*i));
+                            progress();
+                            clip
+                        })
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        for h in handles {
+            out.push(h.join().unwrap_or_default());
+        }
+    });
+    out.into_iter().flatten().collect()
 }

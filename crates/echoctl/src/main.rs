@@ -27,6 +27,12 @@ enum Command {
     /// List the services that are alive (from liveliness tokens).
     #[command(display_order = 11)]
     List(cmd::list::Args),
+    /// Generate, describe and export interaction datasets.
+    #[command(display_order = 40, subcommand)]
+    Data(cmd::data::Verb),
+    /// Score predictors on a dataset split (paper-style table).
+    #[command(display_order = 41)]
+    Eval(cmd::eval::Args),
     /// Measure latency percentiles: `bridge` (per frame) or `bus` (loopback round trip).
     #[command(display_order = 30)]
     Bench(cmd::bench::Args),
@@ -58,6 +64,8 @@ async fn main() -> Result<()> {
             telemetry::init();
             cmd::list::run(a).await
         }
+        Command::Data(v) => cmd::data::run(v),
+        Command::Eval(a) => cmd::eval::run(a),
         Command::Bench(a) => {
             telemetry::init();
             cmd::bench::run(a).await

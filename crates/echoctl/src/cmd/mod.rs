@@ -1,7 +1,9 @@
 //! One module per `echoctl` verb.
 
 pub mod bench;
+pub mod data;
 pub mod demo;
+pub mod eval;
 pub mod list;
 pub mod mock_perception;
 pub mod mock_robot;

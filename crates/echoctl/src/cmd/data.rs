@@ -1,0 +1,195 @@
+//! `echoctl data`: generate, describe and export interaction datasets.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use anyhow::{anyhow, Result};
+use clap::Subcommand;
+use echo_motion::sensors::contact_and_proximity;
+use echo_motion::skeleton::{j, NUM_JOINTS, PARENTS};
+use echo_motion::synth::{generate_split, Clip, Split, FPS};
+use indicatif::{ProgressBar, ProgressStyle};
+
+/// Data verbs.
+#[derive(Debug, Clone, Subcommand)]
+pub enum Verb {
+    /// Generate synthetic interactions in Echo's format.
+    Gen {
+        /// Split: train, val, test, held-out.
+        #[arg(long, default_value = "train")]
+        split: String,
+        /// Number of clips (types cycle through all 13).
+        #[arg(long, default_value_t = 20_000)]
+        clips: u64,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// Worker threads.
+        #[arg(long, default_value_t = 2)]
+        threads: usize,
+    },
+    /// Per-type statistics of a split (generated on the fly) or of a dataset directory.
+    Stats {
+        /// Split to generate and describe.
+        #[arg(long, default_value = "test")]
+        split: String,
+        /// Clips per interaction type.
+        #[arg(long, default_value_t = 20)]
+        clips_per_kind: u64,
+        /// Describe this dataset directory instead.
+        #[arg(long)]
+        dir: Option<PathBuf>,
+    },
+}
+
+/// A progress bar with rate and ETA.
+pub fn progress(n: u64, what: &str) -> ProgressBar {
+    let pb = ProgressBar::new(n);
+    pb.set_style(
+        ProgressStyle::with_template(&format!(
+            "{what} {{bar:40}} {{pos}}/{{len}} {{per_sec}} eta {{eta}}"
+        ))
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    pb
+}
+
+/// Run a data verb.
+pub fn run(verb: Verb) -> Result<()> {
+    match verb {
+        Verb::Gen {
+            split,
+            clips,
+            out,
+            threads,
+        } => {
+            let split = Split::parse(&split)
+                .ok_or_else(|| anyhow!("--split must be train, val, test or held-out"))?;
+            let pb = progress(clips, "generating");
+            let started = std::time::Instant::now();
+            let data = generate_split(split, 0..clips, threads, &|| pb.inc(1));
+            pb.finish();
+            let secs = started.elapsed().as_secs_f64();
+            echo_motion::dataset::write(&out, &data)?;
+            println!(
+                "{} clips ({:.1} s of motion each on average) in {secs:.1} s: {:.0} clips/s on {threads} threads → {}",
+                data.len(),
+                data.iter().map(Clip::duration).sum::<f64>() / data.len().max(1) as f64,
+                data.len() as f64 / secs.max(1e-9),
+                out.display()
+            );
+            Ok(())
+        }
+        Verb::Stats {
+            split,
+            clips_per_kind,
+            dir,
+        } => {
+            let clips: Vec<Clip> = match dir {
+                Some(d) => {
+                    let ds = echo_motion::dataset::read(&d)?;
+                    (0..ds.meta.clips.len())
+                        .filter_map(|i| ds.clip(i))
+                        .collect()
+                }
+                None => {
+                    let split = Split::parse(&split)
+                        .ok_or_else(|| anyhow!("--split must be train, val, test or held-out"))?;
+                    let n = clips_per_kind * echo_motion::synth::KINDS.len() as u64;
+                    let pb = progress(n, "generating");
+                    let c = generate_split(split, 0..n, 2, &|| pb.inc(1));
+                    pb.finish_and_clear();
+                    c
+                }
+            };
+            println!("{}", stats_table(&clips));
+            Ok(())
+        }
+    }
+}
+
+#[derive(Default)]
+struct KindStats {
+    clips: usize,
+    seconds: f64,
+    speed_sum: f64,
+    frames: usize,
+    contact: usize,
+    proximity: usize,
+    skate: Vec<f64>,
+    bone_dev: f64,
+    delay_sum: f64,
+}
+
+/// Markdown table of per-type statistics.
+pub fn stats_table(clips: &[Clip]) -> String {
+    let mut per: BTreeMap<String, KindStats> = BTreeMap::new();
+    for c in clips {
+        let kind = serde_json::to_value(c.params.kind)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_default();
+        let s = per.entry(kind).or_default();
+        s.clips += 1;
+        s.seconds += c.duration();
+        s.delay_sum += c.params.delay;
+        let n = c.frames.len();
+        let bones0: Vec<Vec<f64>> = (0..2)
+            .map(|p| {
+                let x = c.joints(0, p);
+                (1..NUM_JOINTS)
+                    .map(|k| (x[k] - x[PARENTS[k] as usize]).norm())
+                    .collect()
+            })
+            .collect();
+        for f in 0..n {
+            let (a, b) = (c.joints(f, 0), c.joints(f, 1));
+            let (ct, pr) = contact_and_proximity(&a, &b);
+            s.contact += usize::from(ct);
+            s.proximity += usize::from(pr);
+            s.frames += 1;
+            for (p, x) in [a, b].iter().enumerate() {
+                for k in 1..NUM_JOINTS {
+                    let l = (x[k] - x[PARENTS[k] as usize]).norm();
+                    s.bone_dev = s.bone_dev.max((l - bones0[p][k - 1]).abs());
+                }
+            }
+            if f > 0 {
+                for p in 0..2 {
+                    let (x0, x1) = (c.joints(f - 1, p), c.joints(f, p));
+                    s.speed_sum += (x1[0] - x0[0]).xy().norm() * FPS;
+                    // Foot skating: horizontal speed of the lower (stance) foot.
+                    let foot = if x1[j::L_FOOT].z < x1[j::R_FOOT].z {
+                        j::L_FOOT
+                    } else {
+                        j::R_FOOT
+                    };
+                    s.skate.push((x1[foot] - x0[foot]).xy().norm() * FPS);
+                }
+            }
+        }
+    }
+    let mut out = String::from("| type | clips | mean s | mean root speed m/s | contact frames | proximity frames | mean reaction delay s | stance-foot speed p50 / p95 m/s | max bone-length change mm |\n|---|---|---|---|---|---|---|---|---|\n");
+    for (k, s) in &mut per {
+        s.skate.sort_by(f64::total_cmp);
+        let q = |p: f64| {
+            s.skate
+                .get(((s.skate.len() as f64 - 1.0) * p) as usize)
+                .copied()
+                .unwrap_or(0.0)
+        };
+        out.push_str(&format!(
+            "| {k} | {} | {:.1} | {:.2} | {:.0} % | {:.0} % | {:.2} | {:.2} / {:.2} | {:.3} |\n",
+            s.clips,
+            s.seconds / s.clips as f64,
+            s.speed_sum / (2.0 * s.frames.max(1) as f64),
+            100.0 * s.contact as f64 / s.frames.max(1) as f64,
+            100.0 * s.proximity as f64 / s.frames.max(1) as f64,
+            s.delay_sum / s.clips as f64,
+            q(0.5),
+            q(0.95),
+            s.bone_dev * 1000.0,
+        ));
+    }
+    out
+}
