@@ -4,6 +4,7 @@
 
 pub mod harness;
 pub mod metrics;
+pub mod render;
 pub mod window;
 
 pub use harness::{evaluate, Report};

@@ -793,3 +793,54 @@ pub fn generate_split(
     });
     out.into_iter().flatten().collect()
 }
+
+#[cfg(test)]
+mod bow_tests {
+    use super::*;
+
+    #[test]
+    fn bows_move_the_head_forward_and_the_reactor_bows_later() {
+        for seed in 0..5 {
+            let c = generate(&ClipParams::sample(
+                Interaction::Bow,
+                &ParamRanges::train(),
+                seed,
+            ));
+            let fwd = |f: usize, p: usize| {
+                let x = c.joints(f, p);
+                let other = c.joints(f, 1 - p)[0];
+                let dir = (other - x[0]).xy().normalize();
+                (x[j::HEAD] - x[0]).xy().dot(&dir)
+            };
+            let (peak_a, fa) = (0..c.frames.len())
+                .map(|f| (fwd(f, 0), f))
+                .fold((f64::MIN, 0), |m, x| if x.0 > m.0 { x } else { m });
+            let (peak_b, fb) = (0..c.frames.len())
+                .map(|f| (fwd(f, 1), f))
+                .fold((f64::MIN, 0), |m, x| if x.0 > m.0 { x } else { m });
+            assert!(
+                peak_a - fwd(0, 0) > 0.2,
+                "seed {seed}: A's head moves {:.2} m",
+                peak_a - fwd(0, 0)
+            );
+            assert!(
+                peak_b - fwd(0, 1) > 0.12,
+                "seed {seed}: B's head moves {:.2} m",
+                peak_b - fwd(0, 1)
+            );
+            // Onsets: first frame past half of each bow.
+            let onset = |p: usize, peak: f64| {
+                (0..c.frames.len())
+                    .find(|&f| fwd(f, p) - fwd(0, p) > 0.5 * (peak - fwd(0, p)))
+                    .unwrap()
+            };
+            let lag = (onset(1, peak_b) as f64 - onset(0, peak_a) as f64) / FPS;
+            assert!(
+                (lag - c.params.delay).abs() < 0.25,
+                "seed {seed}: B bows {lag:.2} s after A (delay {:.2})",
+                c.params.delay
+            );
+            let _ = (fa, fb);
+        }
+    }
+}

@@ -28,6 +28,32 @@ pub enum Verb {
         #[arg(long, default_value_t = 2)]
         threads: usize,
     },
+    /// Draw an interaction (both people; with --predict, ground truth vs prediction) as an
+    /// animated GIF, numbered PNGs, or a strip of frames.
+    Render {
+        /// Interaction type, e.g. handshake, wave, hug (snake_case).
+        #[arg(long)]
+        kind: String,
+        /// Split to draw the clip from.
+        #[arg(long, default_value = "test")]
+        split: String,
+        /// Which clip of that type (0, 1, …).
+        #[arg(long, default_value_t = 0)]
+        index: u64,
+        /// Output: `x.gif` (animation), `x.png` with --strip (one image), else `x_NNN.png` frames.
+        #[arg(long)]
+        out: PathBuf,
+        /// One image with this many frames side by side.
+        #[arg(long)]
+        strip: Option<usize>,
+        /// Overlay a predictor's forecast (zero-velocity or constant-velocity) for the window
+        /// starting at --at.
+        #[arg(long)]
+        predict: Option<String>,
+        /// Window start for --predict, frames at 15 Hz.
+        #[arg(long, default_value_t = 16)]
+        at: usize,
+    },
     /// Per-type statistics of a split (generated on the fly) or of a dataset directory.
     Stats {
         /// Split to generate and describe.
@@ -80,6 +106,15 @@ pub fn run(verb: Verb) -> Result<()> {
             );
             Ok(())
         }
+        Verb::Render {
+            kind,
+            split,
+            index,
+            out,
+            strip,
+            predict,
+            at,
+        } => render(&kind, &split, index, &out, strip, predict.as_deref(), at),
         Verb::Stats {
             split,
             clips_per_kind,
@@ -192,4 +227,67 @@ pub fn stats_table(clips: &[Clip]) -> String {
         ));
     }
     out
+}
+
+fn render(
+    kind: &str,
+    split: &str,
+    index: u64,
+    out: &std::path::Path,
+    strip: Option<usize>,
+    predict: Option<&str>,
+    at: usize,
+) -> Result<()> {
+    let split = Split::parse(split)
+        .ok_or_else(|| anyhow!("--split must be train, val, test or held-out"))?;
+    let kinds = echo_motion::synth::KINDS;
+    let k = kinds
+        .iter()
+        .position(|x| {
+            serde_json::to_value(x)
+                .ok()
+                .and_then(|v| v.as_str().map(str::to_string))
+                .as_deref()
+                == Some(kind)
+        })
+        .ok_or_else(|| anyhow!("unknown --kind '{kind}'"))? as u64;
+    let clip = echo_motion::synth::generate(&split.clip(k + index * kinds.len() as u64));
+    println!("{}", clip.texts.join("\n"));
+    let view = echo_eval::render::View::default();
+    let (truth, pred) = match predict {
+        None => {
+            let frames: Vec<echo_eval::metrics::Frame> = (0..clip.frames.len())
+                .step_by(2)
+                .map(|f| vec![clip.joints(f, 0), clip.joints(f, 1)])
+                .collect();
+            (frames, None)
+        }
+        Some(name) => {
+            let w = echo_eval::window::windows(&clip, 1);
+            let w = w
+                .get(at)
+                .ok_or_else(|| anyhow!("--at {at}: the clip has {} windows", w.len()))?;
+            let mut p: Box<dyn echo_eval::Predictor> = match name {
+                "zero-velocity" => Box::new(echo_eval::window::ZeroVelocity),
+                "constant-velocity" => Box::new(echo_eval::window::ConstantVelocity),
+                other => anyhow::bail!("unknown predictor '{other}'"),
+            };
+            let forecast = p.predict(&[w]).remove(0);
+            let mut truth = w.obs.clone();
+            truth.extend(w.future.clone());
+            let mut pr = w.obs.clone();
+            pr.extend(forecast);
+            (truth, Some(pr))
+        }
+    };
+    match strip {
+        Some(n) => echo_eval::render::strip(out, &truth, pred.as_deref(), 15.0, n, view)
+            .map_err(anyhow::Error::msg)?,
+        None => {
+            let files = echo_eval::render::render(out, &truth, pred.as_deref(), 15.0, view)
+                .map_err(anyhow::Error::msg)?;
+            println!("wrote {} file(s)", files.len());
+        }
+    }
+    Ok(())
 }
