@@ -62,12 +62,16 @@ async fn typed_delivery_rejections_and_liveliness() {
         .unwrap();
     }
     tokio::time::sleep(Duration::from_millis(500)).await;
+    // Zenoh may already drop under congestion at the sender (Drop policy); whatever arrives,
+    // the inbox keeps at most its depth (32 for joint states) and counts every message it drops.
     let kept = states.drain().len() as u64;
-    assert_eq!(
-        kept + stats.dropped_count("robot_state"),
-        stats.received_count("robot_state")
-    );
-    assert!(stats.dropped_count("robot_state") > 0);
+    let received = stats.received_count("robot_state");
+    assert!(received > 0);
+    assert!(kept <= 32, "kept {kept}");
+    assert_eq!(kept + stats.dropped_count("robot_state"), received);
+    if received > 32 {
+        assert!(stats.dropped_count("robot_state") > 0);
+    }
 
     drop(token);
     b.close().await.unwrap();

@@ -85,7 +85,7 @@ impl Projector {
         if let Some(f) = frames.first().filter(|f| f.len() >= 2) {
             let axis = f[1][0] - f[0][0];
             if axis.xy().norm() > 1e-6 {
-                view.azimuth = axis.y.atan2(axis.x) + view.azimuth;
+                view.azimuth += axis.y.atan2(axis.x);
             }
         }
         Projector {
