@@ -3,7 +3,9 @@
 //!
 //! World convention: REP-103, z up, metres.
 
+pub mod bvh;
 pub mod dataset;
+pub mod intergen;
 pub mod posing;
 pub mod rotation;
 pub mod scripted;

@@ -54,6 +54,21 @@ pub enum Verb {
         #[arg(long, default_value_t = 16)]
         at: usize,
     },
+    /// Export generated clips to the InterGen layout or to BVH files (one per person).
+    Export {
+        /// intergen or bvh.
+        #[arg(long)]
+        format: String,
+        /// Split to generate.
+        #[arg(long, default_value = "test")]
+        split: String,
+        /// Number of clips.
+        #[arg(long, default_value_t = 26)]
+        clips: u64,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Per-type statistics of a split (generated on the fly) or of a dataset directory.
     Stats {
         /// Split to generate and describe.
@@ -104,6 +119,40 @@ pub fn run(verb: Verb) -> Result<()> {
                 data.len() as f64 / secs.max(1e-9),
                 out.display()
             );
+            Ok(())
+        }
+        Verb::Export {
+            format,
+            split,
+            clips,
+            out,
+        } => {
+            let split_v = Split::parse(&split)
+                .ok_or_else(|| anyhow!("--split must be train, val, test or held-out"))?;
+            let pb = progress(clips, "generating");
+            let data = generate_split(split_v, 0..clips, 2, &|| pb.inc(1));
+            pb.finish_and_clear();
+            match format.as_str() {
+                "intergen" => {
+                    let ids: Vec<usize> = (0..data.len()).collect();
+                    echo_motion::intergen::export(&out, &data, &[(split.as_str(), ids)])?;
+                }
+                "bvh" => {
+                    std::fs::create_dir_all(&out)?;
+                    for (i, c) in data.iter().enumerate() {
+                        for p in 0..2 {
+                            let frames: Vec<_> =
+                                (0..c.frames.len()).map(|f| c.joints(f, p)).collect();
+                            std::fs::write(
+                                out.join(format!("{i:05}_person{}.bvh", p + 1)),
+                                echo_motion::bvh::write(&frames, FPS),
+                            )?;
+                        }
+                    }
+                }
+                other => anyhow::bail!("--format must be intergen or bvh, not '{other}'"),
+            }
+            println!("exported {} clips to {}", data.len(), out.display());
             Ok(())
         }
         Verb::Render {
