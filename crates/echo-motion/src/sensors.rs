@@ -77,8 +77,10 @@ pub fn body_capsules(p: &[Vector3<f64>]) -> Vec<(BodyPart, Capsule)> {
     ]
 }
 
-/// Surface distances between every part of A and every part of B (`[a][b]`).
-pub fn part_distances(a: &[(BodyPart, Capsule)], b: &[(BodyPart, Capsule)]) -> Vec<Vec<f64>> {
+/// Surface distances between every part of A and every part of B (`[a][b]`). Works for any
+/// two capsule models: person–person, or person–robot with the robot's capsules
+/// (`echo_robot::collision::RobotBody::at`).
+pub fn part_distances<A, B>(a: &[(A, Capsule)], b: &[(B, Capsule)]) -> Vec<Vec<f64>> {
     a.iter()
         .map(|(_, ca)| b.iter().map(|(_, cb)| ca.distance(cb)).collect())
         .collect()
@@ -144,6 +146,28 @@ mod tests {
         // 0.35 m apart: surfaces 3 cm apart → proximity only.
         let close = person_at(0.35, std::f64::consts::PI);
         assert_eq!(contact_and_proximity(&a, &close), (false, true));
+    }
+
+    #[test]
+    fn the_same_sensor_works_between_a_person_and_the_robot() {
+        let m = echo_robot::RobotModel::tiago_dual();
+        let home = echo_robot::home_pose();
+        let q = m
+            .values_from(home.iter().map(|(n, v)| (n.as_str(), *v)))
+            .unwrap();
+        let robot = echo_robot::collision::RobotBody::tiago(&m)
+            .unwrap()
+            .at(&m, &q);
+        let near = body_capsules(&person_at(0.46, std::f64::consts::PI));
+        let far = body_capsules(&person_at(2.0, std::f64::consts::PI));
+        assert!(any(&sensor(
+            &part_distances(&near, &robot),
+            PROXIMITY_MARGIN
+        )));
+        assert!(!any(&sensor(
+            &part_distances(&far, &robot),
+            PROXIMITY_MARGIN
+        )));
     }
 
     #[test]
