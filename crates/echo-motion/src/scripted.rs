@@ -4,10 +4,10 @@
 
 use std::f64::consts::PI;
 
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::Vector3;
 
-use crate::rotation::swing;
-use crate::skeleton::{forward, j, Body, Pose, NUM_JOINTS, PARENTS};
+use crate::posing::{pose, Intent};
+use crate::skeleton::{forward, j, Body, Pose, NUM_JOINTS};
 
 /// What a person does during one segment of a script.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -103,39 +103,30 @@ impl ScriptedPerson {
         };
         let w = smoothstep((ts / BLEND_S).clamp(0.0, 1.0));
 
+        let walked = self.walked(t);
         let fwd = Vector3::new(self.yaw.cos(), self.yaw.sin(), 0.0);
-        let mut root = self.start + fwd * self.walked(t);
-        root.z = self.body.pelvis_height();
-        let mut pose = Pose::rest(root, self.yaw);
-
-        // Arms: blend the directions of the previous and the current action.
+        let root = self.start + fwd * walked;
+        let mut it = Intent::standing(root.x, root.y, self.yaw);
+        // Arms: blend the directions of the previous and the current action, as hand targets.
         for right in [false, true] {
             let (u0, f0) = arm_dirs(prev, right, t);
             let (u1, f1) = arm_dirs(action, right, t);
-            let upper = u0.lerp(&u1, w);
-            let fore = f0.lerp(&f1, w);
-            set_arm(&mut pose, &self.body, right, &upper, &fore);
+            let (l1, l2) = arm_segments(&self.body, right);
+            let target = u0.lerp(&u1, w).normalize() * l1 + f0.lerp(&f1, w).normalize() * l2;
+            if right {
+                it.right_hand = Some(target);
+            } else {
+                it.left_hand = Some(target);
+            }
         }
-        // Legs: a simple gait while walking.
+        // Legs: the gait of the shared posing, phase driven by the distance walked.
         let walking = |a: Action| matches!(a, Action::Walk { .. });
         let gait =
             if walking(action) { w } else { 0.0 } + if walking(prev) { 1.0 - w } else { 0.0 };
-        if gait > 0.0 {
-            let phase = 2.0 * PI * 0.9 * t;
-            for (hip, knee, sign) in [(j::L_HIP, j::L_KNEE, 1.0), (j::R_HIP, j::R_KNEE, -1.0)] {
-                let s = (phase).sin() * sign;
-                pose.local[hip] = UnitQuaternion::from_euler_angles(0.0, -0.35 * s * gait, 0.0);
-                pose.local[knee] = UnitQuaternion::from_euler_angles(
-                    0.0,
-                    0.5 * (1.0 + s).max(0.0) * 0.5 * gait,
-                    0.0,
-                );
-            }
-            pose.root_position.z -= 0.015 * gait * (2.0 * phase).cos().abs();
-        }
+        it.gait = (PI * walked / crate::synth::STEP_M, gait);
         // A little idle sway so a standing person is never perfectly still.
-        pose.local[j::SPINE1] = UnitQuaternion::from_euler_angles(0.02 * (0.7 * t).sin(), 0.0, 0.0);
-        pose
+        it.spine_pitch = 0.02 * (0.7 * t).sin();
+        pose(&self.body, &it)
     }
 
     /// Joint positions at time `t`.
@@ -146,6 +137,15 @@ impl ScriptedPerson {
 
 fn smoothstep(x: f64) -> f64 {
     x * x * (3.0 - 2.0 * x)
+}
+
+fn arm_segments(body: &Body, right: bool) -> (f64, f64) {
+    let (e, w) = if right {
+        (j::R_ELBOW, j::R_WRIST)
+    } else {
+        (j::L_ELBOW, j::L_WRIST)
+    };
+    (body.offsets[e].norm(), body.offsets[w].norm())
 }
 
 /// Upper-arm and forearm directions in the body frame (x forward, y left, z up).
@@ -169,24 +169,6 @@ fn arm_dirs(action: Action, right: bool, t: f64) -> (Vector3<f64>, Vector3<f64>)
         ),
         _ => down,
     }
-}
-
-/// Set collar-relative shoulder and elbow rotations so the arm points along the given directions.
-fn set_arm(pose: &mut Pose, body: &Body, right: bool, upper: &Vector3<f64>, fore: &Vector3<f64>) {
-    let (shoulder, elbow, wrist) = if right {
-        (j::R_SHOULDER, j::R_ELBOW, j::R_WRIST)
-    } else {
-        (j::L_SHOULDER, j::L_ELBOW, j::L_WRIST)
-    };
-    let g = pose.global_rotations();
-    let heading = pose.root_orientation;
-    let collar_g = g[PARENTS[shoulder] as usize];
-    let upper_w = heading * upper;
-    let fore_w = heading * fore;
-    let s_g = collar_g * swing(&body.offsets[elbow], &(collar_g.inverse() * upper_w));
-    pose.local[shoulder] = collar_g.inverse() * s_g;
-    let e_g = s_g * swing(&body.offsets[wrist], &(s_g.inverse() * fore_w));
-    pose.local[elbow] = s_g.inverse() * e_g;
 }
 
 /// The demo's partner: starts 3 m in front of the robot facing it, walks to 1.2 m, waves,
@@ -245,6 +227,7 @@ pub fn bystander(height_m: f64) -> ScriptedPerson {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::skeleton::PARENTS;
 
     #[test]
     fn partner_approaches_and_raises_the_hand_to_wave() {
