@@ -47,16 +47,7 @@ fn run(format: MockFormat, bystander: bool, seconds: f64) -> Run {
         bridge.on_joint_state(&robot.joint_state("tiago", stamp));
         if t + 1e-9 >= next_frame {
             next_frame += 1.0 / 15.0;
-            let q = model
-                .values_from(
-                    model
-                        .actuated_joints()
-                        .iter()
-                        .map(|n| n.as_str())
-                        .zip(robot.positions().iter().copied()),
-                )
-                .unwrap();
-            let cam = model.fk(&q, frames::HEAD_CAMERA_OPTICAL).unwrap();
+            let cam = robot.frame_pose(frames::HEAD_CAMERA_OPTICAL).unwrap();
             let Some(frame) = mock.frame("tiago", t, stamp, &cam) else {
                 continue;
             };

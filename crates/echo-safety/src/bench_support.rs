@@ -40,6 +40,29 @@ fn person(x: f64) -> Vec<[f64; 3]> {
     rel.iter().map(|p| [x + p[0], p[1], p[2]]).collect()
 }
 
+/// A skeletons message with one tracked partner at `joints` (base_footprint, facing the robot).
+pub fn partner_skeletons(joints: Vec<[f64; 3]>) -> HumanSkeletons {
+    HumanSkeletons {
+        header: Header::new("tiago", "bridge", frames::BASE_FOOTPRINT),
+        rate_hz: 15.0,
+        tracks: vec![HumanTrack {
+            track_id: 0,
+            pose: HumanPose {
+                root_position: joints[0],
+                joints,
+                root_orientation: [0.0, 0.0, 1.0, 0.0],
+                local_positions: vec![[0.0; 3]; 22],
+                local_rotations: vec![[0.0, 0.0, 0.0, 1.0]; 22],
+                confidence: vec![1.0; 22],
+            },
+            root_velocity: [0.0; 3],
+            age_frames: 1,
+            filled_joints: vec![],
+        }],
+        partner_id: Some(0),
+    }
+}
+
 /// The supervisor and a closure that feeds it one cycle of inputs (state every cycle, a plan
 /// and skeletons every third cycle).
 pub fn moving_scene() -> (Supervisor, impl FnMut(&mut Supervisor, Instant)) {
@@ -105,28 +128,7 @@ pub fn moving_scene() -> (Supervisor, impl FnMut(&mut Supervisor, Instant)) {
                 },
                 now,
             );
-            s.on_humans(
-                &HumanSkeletons {
-                    header: Header::new("tiago", "bridge", frames::BASE_FOOTPRINT),
-                    rate_hz: 15.0,
-                    tracks: vec![HumanTrack {
-                        track_id: 0,
-                        pose: HumanPose {
-                            joints: body.clone(),
-                            root_position: body[0],
-                            root_orientation: [0.0, 0.0, 1.0, 0.0],
-                            local_positions: vec![[0.0; 3]; 22],
-                            local_rotations: vec![[0.0, 0.0, 0.0, 1.0]; 22],
-                            confidence: vec![1.0; 22],
-                        },
-                        root_velocity: [0.0; 3],
-                        age_frames: 1,
-                        filled_joints: vec![],
-                    }],
-                    partner_id: Some(0),
-                },
-                now,
-            );
+            s.on_humans(&partner_skeletons(body), now);
         }
         cycle += 1;
     };

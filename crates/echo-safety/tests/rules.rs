@@ -325,26 +325,7 @@ fn lost_liveliness_of_a_required_service_stops_the_robot() {
 }
 
 fn person(x: f64, y: f64) -> HumanSkeletons {
-    let body = echo_motion_free_person(x, y);
-    HumanSkeletons {
-        header: Header::new("tiago", "bridge", frames::BASE_FOOTPRINT),
-        rate_hz: 15.0,
-        tracks: vec![HumanTrack {
-            track_id: 0,
-            pose: HumanPose {
-                joints: body.clone(),
-                root_position: body[0],
-                root_orientation: [0.0, 0.0, 1.0, 0.0],
-                local_positions: vec![[0.0; 3]; 22],
-                local_rotations: vec![[0.0, 0.0, 0.0, 1.0]; 22],
-                confidence: vec![1.0; 22],
-            },
-            root_velocity: [0.0; 3],
-            age_frames: 10,
-            filled_joints: vec![],
-        }],
-        partner_id: Some(0),
-    }
+    echo_safety::bench_support::partner_skeletons(echo_motion_free_person(x, y))
 }
 
 /// A standing person facing the robot at (x, y), right hand held out toward the robot.

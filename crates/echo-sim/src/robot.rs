@@ -205,6 +205,19 @@ impl SimRobot {
         &self.q
     }
 
+    /// Current positions as the model's joint values.
+    pub fn joint_values(&self) -> echo_robot::JointValues {
+        echo_robot::JointValues(self.q.clone())
+    }
+
+    /// Pose of `frame` (e.g. the head camera) in base_footprint now.
+    pub fn frame_pose(
+        &self,
+        frame: &str,
+    ) -> Result<nalgebra::Isometry3<f64>, echo_robot::RobotError> {
+        self.model.fk(&self.joint_values(), frame)
+    }
+
     /// Current joint state stamped `stamp_ns`.
     pub fn joint_state(&self, robot_id: &str, stamp_ns: u64) -> JointState {
         let mut header = Header::new(robot_id, "mock-robot", "");

@@ -30,16 +30,7 @@ pub fn bridge_inputs(n: usize, cfg: MockPerceptionConfig) -> Vec<(JointState, Ke
         let t = (i + 1) as f64 / rate;
         let stamp = T0_NS + (t * 1e9) as u64;
         i += 1;
-        let q = model
-            .values_from(
-                model
-                    .actuated_joints()
-                    .iter()
-                    .map(String::as_str)
-                    .zip(robot.positions().iter().copied()),
-            )
-            .unwrap_or_else(|_| model.zero());
-        let Ok(cam) = model.fk(&q, frames::HEAD_CAMERA_OPTICAL) else {
+        let Ok(cam) = robot.frame_pose(frames::HEAD_CAMERA_OPTICAL) else {
             continue;
         };
         if let Some(f) = mock.frame("tiago", mock.script_time(t), stamp, &cam) {

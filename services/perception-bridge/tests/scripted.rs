@@ -40,16 +40,7 @@ fn script(frames_n: usize) -> (Vec<Input>, Vec<KeypointFrame>) {
         drop_joint_prob: 0.0,
         ..Default::default()
     });
-    let q = model
-        .values_from(
-            model
-                .actuated_joints()
-                .iter()
-                .map(|n| n.as_str())
-                .zip(robot.positions().iter().copied()),
-        )
-        .unwrap();
-    let cam = model.fk(&q, frames::HEAD_CAMERA_OPTICAL).unwrap();
+    let cam = robot.frame_pose(frames::HEAD_CAMERA_OPTICAL).unwrap();
     let mut inputs = vec![];
     let mut kf = vec![];
     for i in 0..frames_n as u64 {
