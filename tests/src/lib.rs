@@ -92,6 +92,20 @@ impl Harness {
         Ok(())
     }
 
+    /// Start `program` with exactly `args` (no mesh flags), e.g. a router with its own endpoints.
+    pub fn spawn_raw(&mut self, label: &str, program: &str, args: &[&str]) -> Result<()> {
+        let log = std::fs::File::create(self.log_dir.join(format!("{label}.log")))?;
+        let child = Command::new(binary(program)?)
+            .args(args)
+            .env("RUST_LOG", "info,zenoh=warn")
+            .stdout(Stdio::from(log.try_clone()?))
+            .stderr(Stdio::from(log))
+            .spawn()
+            .with_context(|| format!("starting {label}"))?;
+        self.children.push((label.to_string(), child));
+        Ok(())
+    }
+
     /// Wait until every service in `services` has its liveliness token, or fail naming the
     /// ones missing (with the tail of their logs).
     pub async fn wait_alive(

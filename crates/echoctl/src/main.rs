@@ -33,6 +33,9 @@ enum Command {
     /// Score predictors on a dataset split (paper-style table).
     #[command(display_order = 41)]
     Eval(cmd::eval::Args),
+    /// Run a Zenoh router (the same engine as zenohd, from this binary).
+    #[command(display_order = 50)]
+    Router(cmd::router::Args),
     /// Measure latency percentiles: `bridge` (per frame) or `bus` (loopback round trip).
     #[command(display_order = 30)]
     Bench(cmd::bench::Args),
@@ -66,6 +69,10 @@ async fn main() -> Result<()> {
         }
         Command::Data(v) => cmd::data::run(v),
         Command::Eval(a) => cmd::eval::run(a),
+        Command::Router(a) => {
+            telemetry::init();
+            cmd::router::run(a).await
+        }
         Command::Bench(a) => {
             telemetry::init();
             cmd::bench::run(a).await

@@ -8,3 +8,4 @@ pub mod list;
 pub mod mock_perception;
 pub mod mock_robot;
 pub mod monitor;
+pub mod router;
