@@ -33,6 +33,9 @@ enum Command {
     /// Score predictors on a dataset split (paper-style table).
     #[command(display_order = 41)]
     Eval(cmd::eval::Args),
+    /// Train a model on generated interactions (forecaster).
+    #[command(display_order = 42)]
+    Train(cmd::train::Args),
     /// Run a Zenoh router (the same engine as zenohd, from this binary).
     #[command(display_order = 50)]
     Router(cmd::router::Args),
@@ -69,6 +72,7 @@ async fn main() -> Result<()> {
         }
         Command::Data(v) => cmd::data::run(v),
         Command::Eval(a) => cmd::eval::run(a),
+        Command::Train(a) => cmd::train::run(a),
         Command::Router(a) => {
             telemetry::init();
             cmd::router::run(a).await

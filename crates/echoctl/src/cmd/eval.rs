@@ -25,6 +25,9 @@ pub struct Args {
     /// Window stride, frames at 15 Hz.
     #[arg(long, default_value_t = 8)]
     pub stride: usize,
+    /// Also score a trained forecaster checkpoint (stem of .safetensors/.json).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
     /// Write the reports as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -47,10 +50,15 @@ pub fn run(args: Args) -> Result<()> {
     let clips = generate_split(split, 0..n, 2, &|| pb.inc(1));
     pb.finish_and_clear();
     let w: Vec<_> = clips.iter().flat_map(|c| windows(c, args.stride)).collect();
-    let reports: Vec<Report> = predictors
+    let mut reports: Vec<Report> = predictors
         .iter_mut()
         .map(|p| evaluate(p.as_mut(), &w, 64))
         .collect();
+    if let Some(stem) = &args.model {
+        let ck = echo_models::Checkpoint::load(stem, &candle_core::Device::Cpu)?;
+        let mut p = ck.predictor(&format!("forecaster ({})", stem.display()));
+        reports.push(evaluate(&mut p, &w, 64));
+    }
     println!(
         "split {} — {} clips, {} windows (observe 0.53 s, predict 1.53 s at 15 Hz), errors in mm\n",
         args.split,

@@ -9,3 +9,4 @@ pub mod mock_perception;
 pub mod mock_robot;
 pub mod monitor;
 pub mod router;
+pub mod train;

@@ -1,0 +1,9 @@
+//! The dual-agent social forecaster in candle: window features, the model, training, and a
+//! [`echo_eval::Predictor`] so the evaluation harness scores it like any baseline.
+
+pub mod features;
+pub mod model;
+pub mod predictor;
+pub mod train;
+
+pub use predictor::{Checkpoint, CheckpointMeta, ModelPredictor};

@@ -1,0 +1,142 @@
+//! The forecaster as an evaluation [`Predictor`], and checkpoints (safetensors + JSON config).
+
+use std::path::Path;
+
+use candle_core::{DType, Device, Tensor};
+use candle_nn::{VarBuilder, VarMap};
+use echo_eval::metrics::Frame;
+use echo_eval::{Predictor, Window};
+use serde::{Deserialize, Serialize};
+
+use crate::features::{decode, encode_frames, FEATURES};
+use crate::model::{Forecaster, ForecasterConfig};
+use crate::train::TrainConfig;
+
+/// A borrowed model that predicts windows in batches.
+pub struct ModelPredictor<'a> {
+    model: &'a Forecaster,
+    dev: Device,
+    name: String,
+}
+
+impl<'a> ModelPredictor<'a> {
+    /// Wrap a model.
+    pub fn new(model: &'a Forecaster, dev: Device, name: &str) -> Self {
+        ModelPredictor {
+            model,
+            dev,
+            name: name.to_string(),
+        }
+    }
+}
+
+impl Predictor for ModelPredictor<'_> {
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+
+    fn predict(&mut self, batch: &[&Window]) -> Vec<Vec<Frame>> {
+        let cfg = self.model.config();
+        let mut canon = Vec::with_capacity(batch.len());
+        let mut data = Vec::with_capacity(batch.len() * 2 * cfg.obs * FEATURES);
+        for w in batch {
+            let (c, agents) = encode_frames(&w.obs[w.obs.len() - cfg.obs..]);
+            for a in &agents {
+                for f in a {
+                    data.extend_from_slice(f);
+                }
+            }
+            canon.push(c);
+        }
+        let out = Tensor::from_vec(data, (batch.len(), 2, cfg.obs, FEATURES), &self.dev)
+            .and_then(|x| self.model.forward(&x, None))
+            .and_then(|y| y.flatten_all()?.to_vec1::<f32>());
+        let Ok(v) = out else {
+            // A model failure must not look like a prediction: hold the last frame.
+            return batch
+                .iter()
+                .map(|w| vec![w.obs[w.obs.len() - 1].clone(); cfg.pred])
+                .collect();
+        };
+        let per = 2 * cfg.pred * FEATURES;
+        canon
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                (0..cfg.pred)
+                    .map(|k| {
+                        (0..2)
+                            .map(|a| {
+                                let o = i * per + (a * cfg.pred + k) * FEATURES;
+                                decode(c, &v[o..o + FEATURES])
+                            })
+                            .collect()
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+}
+
+/// What is stored next to the weights.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CheckpointMeta {
+    /// Architecture.
+    pub model: ForecasterConfig,
+    /// How it was trained.
+    pub training: TrainConfig,
+    /// The command that produced it.
+    pub command: String,
+    /// Text encoder id ("none": no text conditioning yet).
+    pub text_encoder: String,
+    /// Feature layout.
+    pub features: String,
+}
+
+/// A loaded checkpoint.
+pub struct Checkpoint {
+    /// The model.
+    pub model: Forecaster,
+    /// Its metadata.
+    pub meta: CheckpointMeta,
+    dev: Device,
+}
+
+impl Checkpoint {
+    /// Save weights and metadata as `<stem>.safetensors` and `<stem>.json`.
+    pub fn save(varmap: &VarMap, meta: &CheckpointMeta, stem: &Path) -> anyhow::Result<()> {
+        if let Some(d) = stem.parent() {
+            std::fs::create_dir_all(d)?;
+        }
+        varmap.save(stem.with_extension("safetensors"))?;
+        std::fs::write(
+            stem.with_extension("json"),
+            serde_json::to_vec_pretty(meta)?,
+        )?;
+        Ok(())
+    }
+
+    /// Load `<stem>.safetensors` and `<stem>.json`; a missing tensor is named.
+    pub fn load(stem: &Path, dev: &Device) -> anyhow::Result<Checkpoint> {
+        let jp = stem.with_extension("json");
+        let meta: CheckpointMeta = serde_json::from_slice(
+            &std::fs::read(&jp).map_err(|e| anyhow::anyhow!("{}: {e}", jp.display()))?,
+        )
+        .map_err(|e| anyhow::anyhow!("{}: {e}", jp.display()))?;
+        let wp = stem.with_extension("safetensors");
+        let bytes = std::fs::read(&wp).map_err(|e| anyhow::anyhow!("{}: {e}", wp.display()))?;
+        let vb = VarBuilder::from_buffered_safetensors(bytes, DType::F32, dev)?;
+        let model = Forecaster::new(meta.model.clone(), vb)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", wp.display()))?;
+        Ok(Checkpoint {
+            model,
+            meta,
+            dev: dev.clone(),
+        })
+    }
+
+    /// A predictor over this checkpoint.
+    pub fn predictor(&self, name: &str) -> ModelPredictor<'_> {
+        ModelPredictor::new(&self.model, self.dev.clone(), name)
+    }
+}

@@ -1,0 +1,31 @@
+//! The shipped checkpoint (models/forecaster, produced by `echoctl train forecaster`) loads and
+//! beats the zero- and constant-velocity baselines on held-out test windows at every horizon
+//! of 0.5 s and beyond.
+
+use echo_eval::window::{windows, ConstantVelocity, ZeroVelocity};
+use echo_eval::{evaluate, HORIZONS_S};
+use echo_models::Checkpoint;
+use echo_motion::synth::{generate_split, Split, KINDS};
+
+#[test]
+fn shipped_checkpoint_beats_the_baselines_on_the_test_split() {
+    let stem = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/forecaster");
+    let ck = Checkpoint::load(&stem, &candle_core::Device::Cpu)
+        .expect("models/forecaster.{safetensors,json}");
+    assert!(
+        ck.meta.command.contains("train forecaster"),
+        "made by the documented command: {}",
+        ck.meta.command
+    );
+    // Test split: seeds disjoint from training and validation.
+    let clips = generate_split(Split::Test, 0..4 * KINDS.len() as u64, 2, &|| {});
+    let w: Vec<_> = clips.iter().flat_map(|c| windows(c, 8)).collect();
+    let model = evaluate(&mut ck.predictor("forecaster"), &w, 64);
+    let zv = evaluate(&mut ZeroVelocity, &w, 64);
+    let cv = evaluate(&mut ConstantVelocity, &w, 64);
+    for (i, h) in HORIZONS_S.iter().enumerate().filter(|(_, h)| **h >= 0.5) {
+        let (m, z, c) = (model.overall.jpe[i], zv.overall.jpe[i], cv.overall.jpe[i]);
+        eprintln!("{h} s: forecaster {m:.1} mm, zero-velocity {z:.1}, constant-velocity {c:.1}");
+        assert!(m < z && m < c, "at {h} s the forecaster ({m:.1} mm) must beat zero ({z:.1}) and constant velocity ({c:.1})");
+    }
+}
