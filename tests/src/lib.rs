@@ -79,17 +79,10 @@ impl Harness {
             .cloned()
             .with_context(|| format!("no mesh slot left for {label}"))?;
         self.next += 1;
-        let log = std::fs::File::create(self.log_dir.join(format!("{label}.log")))?;
-        let child = Command::new(binary(program)?)
-            .args(args)
-            .args(net.to_cli())
-            .env("RUST_LOG", "info,zenoh=warn")
-            .stdout(Stdio::from(log.try_clone()?))
-            .stderr(Stdio::from(log))
-            .spawn()
-            .with_context(|| format!("starting {label}"))?;
-        self.children.push((label.to_string(), child));
-        Ok(())
+        let mut all: Vec<String> = args.iter().map(|a| a.to_string()).collect();
+        all.extend(net.to_cli());
+        let all: Vec<&str> = all.iter().map(String::as_str).collect();
+        self.spawn_raw(label, program, &all)
     }
 
     /// Start `program` with exactly `args` (no mesh flags), e.g. a router with its own endpoints.
