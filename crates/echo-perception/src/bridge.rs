@@ -1,6 +1,6 @@
 //! The bridge: frame checks, lifting, camera transform, tracking, and model-rate output.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 
 use echo_motion::rotation::quat_to_xyzw;
 use echo_motion::skeleton::{self, NUM_JOINTS};
@@ -94,7 +94,7 @@ pub struct PerceptionBridge {
     cfg: BridgeConfig,
     model: RobotModel,
     histories: HashMap<String, JointStateHistory>,
-    joint_state_seen: Vec<JointState>,
+    joint_state_seen: VecDeque<JointState>,
     tracker: Tracker,
     last_stamp_ns: Option<u64>,
     next_grid_ns: Option<u64>,
@@ -109,7 +109,7 @@ impl PerceptionBridge {
             cfg,
             model,
             histories: HashMap::new(),
-            joint_state_seen: vec![],
+            joint_state_seen: VecDeque::new(),
             tracker: Tracker::new(),
             last_stamp_ns: None,
             next_grid_ns: None,
@@ -129,13 +129,14 @@ impl PerceptionBridge {
             h.push(js);
         }
         // Kept briefly so a camera frame seen for the first time gets the recent history too.
-        self.joint_state_seen.push(js.clone());
+        self.joint_state_seen.push_back(js.clone());
         if self.joint_state_seen.len() > 200 {
-            self.joint_state_seen.remove(0);
+            self.joint_state_seen.pop_front();
         }
     }
 
-    fn history(&mut self, frame: &str) -> Result<&JointStateHistory, BridgeError> {
+    /// Create the joint-state history of a camera frame seen for the first time.
+    fn ensure_history(&mut self, frame: &str) -> Result<(), BridgeError> {
         if !self.histories.contains_key(frame) {
             let mut h = JointStateHistory::new(&self.model, frame)
                 .map_err(|_| BridgeError::UnknownFrame(frame.to_string()))?;
@@ -144,7 +145,7 @@ impl PerceptionBridge {
             }
             self.histories.insert(frame.to_string(), h);
         }
-        Ok(&self.histories[frame])
+        Ok(())
     }
 
     fn resolved_map(&mut self, frame: &KeypointFrame) -> Result<ResolvedMap, BridgeError> {
@@ -199,10 +200,9 @@ impl PerceptionBridge {
         let map = self.resolved_map(frame)?;
         let max_gap = self.cfg.max_state_gap_ms;
         let cam_frame = frame.header.frame_id.clone();
-        let model = self.model.clone();
-        let cam = self
-            .history(&cam_frame)?
-            .camera_pose(&model, &cam_frame, stamp, max_gap)?;
+        self.ensure_history(&cam_frame)?;
+        let cam =
+            self.histories[&cam_frame].camera_pose(&self.model, &cam_frame, stamp, max_gap)?;
         self.last_stamp_ns = Some(stamp);
 
         // Lift every person to 3D in the camera frame, map to SMPL-22, move to base_footprint.

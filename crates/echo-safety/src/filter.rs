@@ -144,13 +144,11 @@ impl Filter {
         self.state
             .iter()
             .zip(&self.limits)
-            .enumerate()
-            .map(|(i, (s, l))| {
+            .map(|(s, l)| {
                 brake_sim(*s, l, f64::NEG_INFINITY, f64::INFINITY, self.dt)
                     .map(|(_, k)| k as f64 * self.dt)
                     .unwrap_or(f64::INFINITY)
                     .max(if s.is_rest() { 0.0 } else { self.dt })
-                    + 0.0 * i as f64
             })
             .fold(0.0, f64::max)
     }

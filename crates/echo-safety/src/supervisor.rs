@@ -461,7 +461,7 @@ impl Supervisor {
         }
 
         // The command: the rollout of the tracking horizon, then a stop to rest.
-        let command = self.command(now, plan_t.map(|t| t + dt), stopping, &scales);
+        let command = self.command(plan_t.map(|t| t + dt), stopping, &scales);
         self.step_twist(plan_t, stopping, scale);
 
         let state = if self.estop.is_some() {
@@ -489,13 +489,7 @@ impl Supervisor {
         }
     }
 
-    fn command(
-        &self,
-        _now: Instant,
-        plan_t: Option<f64>,
-        stopping: bool,
-        scales: &[f64],
-    ) -> RobotCommand {
+    fn command(&self, plan_t: Option<f64>, stopping: bool, scales: &[f64]) -> RobotCommand {
         let dt = self.filter.dt();
         let mut sim = self.filter.clone();
         let n_track = if stopping {
