@@ -311,3 +311,116 @@ pub fn strip(
     out.save(path)
         .map_err(|e| format!("{}: {e}", path.display()))
 }
+
+/// One curve of a [`Panel`]: points (x, y) and an RGB colour.
+pub struct Curve {
+    /// Points, in x order.
+    pub points: Vec<(f64, f64)>,
+    /// Colour.
+    pub rgb: [u8; 3],
+}
+
+/// A line chart panel; its axis ranges fit the data and their ends are labelled with numbers.
+pub struct Panel {
+    /// Curves.
+    pub curves: Vec<Curve>,
+}
+
+/// Draw panels side by side (each 360 × 240 px) into a PNG.
+pub fn chart(path: &Path, panels: &[Panel]) -> Result<(), String> {
+    let (pw, ph) = (360u32, 240u32);
+    let mut img = RgbImage::from_pixel(pw * panels.len().max(1) as u32, ph, Rgb([255, 255, 255]));
+    for (i, p) in panels.iter().enumerate() {
+        let pts = p.curves.iter().flat_map(|c| c.points.iter());
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        for &(x, y) in pts.filter(|(x, y)| x.is_finite() && y.is_finite()) {
+            (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+        }
+        if x0 > x1 {
+            continue;
+        }
+        let (x1, y1) = (x1.max(x0 + 1e-9), y1.max(y0 + 1e-9));
+        let ox = i as u32 * pw;
+        let (l, r, t, b) = (
+            ox as f64 + 44.0,
+            (ox + pw) as f64 - 12.0,
+            12.0,
+            ph as f64 - 24.0,
+        );
+        let axis = Rgb([90, 90, 90]);
+        line(&mut img, (l, b), (r, b), axis, 1);
+        line(&mut img, (l, t), (l, b), axis, 1);
+        let map = |x: f64, y: f64| {
+            (
+                l + (x - x0) / (x1 - x0) * (r - l),
+                b - (y - y0) / (y1 - y0) * (b - t),
+            )
+        };
+        for c in &p.curves {
+            for w in c.points.windows(2) {
+                line(
+                    &mut img,
+                    map(w[0].0, w[0].1),
+                    map(w[1].0, w[1].1),
+                    Rgb(c.rgb),
+                    2,
+                );
+            }
+        }
+        let num = |v: f64| {
+            if v.abs() >= 100.0 {
+                format!("{v:.0}")
+            } else if v.abs() >= 1.0 {
+                format!("{v:.1}")
+            } else {
+                format!("{v:.3}")
+            }
+        };
+        text(&mut img, &num(y1), ox + 2, t as u32, 2);
+        text(&mut img, &num(y0), ox + 2, b as u32 - 10, 2);
+        text(&mut img, &num(x0), l as u32, b as u32 + 6, 2);
+        let xs = num(x1);
+        text(
+            &mut img,
+            &xs,
+            r as u32 - 8 * xs.len() as u32,
+            b as u32 + 6,
+            2,
+        );
+    }
+    img.save(path)
+        .map_err(|e| format!("{}: {e}", path.display()))
+}
+
+#[cfg(test)]
+mod chart_tests {
+    use super::*;
+
+    #[test]
+    fn chart_draws_each_curve_in_its_colour() {
+        let p = std::env::temp_dir().join(format!("echo-chart-{}.png", std::process::id()));
+        let up = Curve {
+            points: (0..10).map(|i| (i as f64, i as f64)).collect(),
+            rgb: [200, 0, 0],
+        };
+        let down = Curve {
+            points: (0..10).map(|i| (i as f64, 9.0 - i as f64)).collect(),
+            rgb: [0, 0, 200],
+        };
+        chart(
+            &p,
+            &[
+                Panel {
+                    curves: vec![up, down],
+                },
+                Panel { curves: vec![] },
+            ],
+        )
+        .unwrap();
+        let img = image::open(&p).unwrap().to_rgb8();
+        assert_eq!(img.dimensions(), (720, 240));
+        let count = |c: [u8; 3]| img.pixels().filter(|px| px.0 == c).count();
+        assert!(count([200, 0, 0]) > 200 && count([0, 0, 200]) > 200);
+        let _ = std::fs::remove_file(p);
+    }
+}

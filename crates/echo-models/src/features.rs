@@ -29,6 +29,11 @@ impl Canonical {
         }
     }
 
+    /// A world point in the window frame.
+    pub fn world_to_window(self, p: &Vector3<f64>) -> Vector3<f64> {
+        self.to_local(p)
+    }
+
     fn to_local(self, p: &Vector3<f64>) -> Vector3<f64> {
         self.rot * (p - self.origin)
     }

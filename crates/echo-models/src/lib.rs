@@ -3,6 +3,7 @@
 
 pub mod features;
 pub mod model;
+pub mod optim;
 pub mod predictor;
 pub mod train;
 

@@ -33,8 +33,18 @@ pub struct ForecasterConfig {
     pub temp_mlp: usize,
     /// Rounds of interleaved cross-attention (social intent); 0 = single-agent variant.
     pub rounds: usize,
-    /// Text embedding size (0: no text token).
+    /// Text embedding size (0: no text token — the "w/o Text" ablation).
     pub text_dim: usize,
+    /// Output = last observed frame + decoded displacement (false: the "w/o Baseline"
+    /// ablation, the decoder outputs the future frames themselves).
+    pub displacement: bool,
+    /// Tokens are DCT coefficients of the padded sequence over time, and the decoder's output
+    /// is transformed back (the "w/ DCT" ablation).
+    pub dct: bool,
+    /// Interleaved refinement — each round refines A by B, then B by the refined A (false: the
+    /// "w/o Iterative Refinement" ablation — all rounds refine A by B's self-intent, then all
+    /// rounds refine B by the final A).
+    pub interleaved: bool,
 }
 
 impl Default for ForecasterConfig {
@@ -48,6 +58,9 @@ impl Default for ForecasterConfig {
             temp_mlp: 2,
             rounds: 2,
             text_dim: 0,
+            displacement: true,
+            dct: false,
+            interleaved: true,
         }
     }
 }
@@ -199,6 +212,25 @@ pub struct Forecaster {
     cross: Vec<[Block; 2]>,
     decode: [Mlp; 2],
     pe: Tensor,
+    /// Orthonormal DCT-II matrix over the T frames (when `dct`).
+    dct: Option<Tensor>,
+}
+
+/// Orthonormal DCT-II matrix: `C = D x` along time, `x = Dᵀ C`.
+pub fn dct_matrix(t: usize, dev: &Device) -> Result<Tensor> {
+    let mut v = vec![0f32; t * t];
+    for k in 0..t {
+        let s = if k == 0 {
+            (1.0 / t as f64).sqrt()
+        } else {
+            (2.0 / t as f64).sqrt()
+        };
+        for n in 0..t {
+            v[k * t + n] =
+                (s * (std::f64::consts::PI / t as f64 * (n as f64 + 0.5) * k as f64).cos()) as f32;
+        }
+    }
+    Tensor::from_vec(v, (t, t), dev)
 }
 
 fn sinusoidal(t: usize, d: usize, dev: &Device) -> Result<Tensor> {
@@ -242,11 +274,23 @@ impl Forecaster {
                     ])
                 })
                 .collect::<Result<_>>()?,
-            decode: [
-                Mlp::zero_out(d, d, FEATURES, vb.pp("decode_a"))?,
-                Mlp::zero_out(d, d, FEATURES, vb.pp("decode_b"))?,
-            ],
+            decode: if cfg.displacement {
+                [
+                    Mlp::zero_out(d, d, FEATURES, vb.pp("decode_a"))?,
+                    Mlp::zero_out(d, d, FEATURES, vb.pp("decode_b"))?,
+                ]
+            } else {
+                [
+                    Mlp::new(d, d, FEATURES, vb.pp("decode_a"))?,
+                    Mlp::new(d, d, FEATURES, vb.pp("decode_b"))?,
+                ]
+            },
             pe: sinusoidal(cfg.frames(), d, vb.device())?,
+            dct: if cfg.dct {
+                Some(dct_matrix(cfg.frames(), vb.device())?)
+            } else {
+                None
+            },
             cfg,
         })
     }
@@ -256,27 +300,47 @@ impl Forecaster {
         &self.cfg
     }
 
-    /// `obs`: (b, 2, obs, FEATURES) observed features; `text`: (b, text_dim) when configured.
-    /// Returns (b, 2, pred, FEATURES): the last observed frame plus predicted displacements.
+    /// `obs`: (b, 2, obs, FEATURES) observed features; `text`: (b, text_dim), required when
+    /// the model has a text token. Returns (b, 2, pred, FEATURES): the social (final) forecast.
     pub fn forward(&self, obs: &Tensor, text: Option<&Tensor>) -> Result<Tensor> {
+        Ok(self.forward_both(obs, text)?.0)
+    }
+
+    /// The social forecast and the individual one (the self-intent features before any
+    /// cross-attention, through the same decoder: what L_self supervises).
+    pub fn forward_both(&self, obs: &Tensor, text: Option<&Tensor>) -> Result<(Tensor, Tensor)> {
         let (b, _, n_obs, f) = obs.dims4()?;
+        if n_obs != self.cfg.obs || f != FEATURES {
+            candle_core::bail!(
+                "observed features must be (b, 2, {}, {FEATURES}), got {:?}",
+                self.cfg.obs,
+                obs.dims()
+            );
+        }
+        let text = match (&self.text, text) {
+            (Some(p), Some(t)) => Some(p.forward(t)?.unsqueeze(1)?), // (b, 1, d)
+            (Some(_), None) => candle_core::bail!("this model needs a text embedding"),
+            (None, _) => None,
+        };
         let t = self.cfg.frames();
         let mut agents = Vec::with_capacity(2);
         let mut lasts = Vec::with_capacity(2);
         for a in 0..2 {
             let x = obs.narrow(1, a, 1)?.squeeze(1)?; // (b, obs, f)
             let last = x.narrow(1, n_obs - 1, 1)?; // (b, 1, f)
-            let padded = Tensor::cat(
+            let mut padded = Tensor::cat(
                 &[
                     x.clone(),
                     last.broadcast_as((b, t - n_obs, f))?.contiguous()?,
                 ],
                 1,
             )?;
+            if let Some(d) = &self.dct {
+                padded = d.broadcast_matmul(&padded)?;
+            }
             let mut h = self.embed[a].forward(&padded)?.broadcast_add(&self.pe)?;
-            if let (Some(proj), Some(txt)) = (&self.text, text) {
-                let tok = proj.forward(txt)?.unsqueeze(1)?; // (b, 1, d)
-                h = Tensor::cat(&[tok, h], 1)?;
+            if let Some(tok) = &text {
+                h = Tensor::cat(&[tok.clone(), h], 1)?;
             }
             for blk in &self.self_blocks {
                 h = blk.forward(&h, &h)?;
@@ -288,18 +352,39 @@ impl Forecaster {
             lasts.push(last);
         }
         let (mut ha, mut hb) = (agents[0].clone(), agents[1].clone());
-        for [ca, cb] in &self.cross {
-            ha = ca.forward(&ha, &hb)?;
-            hb = cb.forward(&hb, &ha)?;
+        if self.cfg.interleaved {
+            for [ca, cb] in &self.cross {
+                ha = ca.forward(&ha, &hb)?;
+                hb = cb.forward(&hb, &ha)?;
+            }
+        } else {
+            for [ca, _] in &self.cross {
+                ha = ca.forward(&ha, &hb)?;
+            }
+            for [_, cb] in &self.cross {
+                hb = cb.forward(&hb, &ha)?;
+            }
         }
-        let skip = usize::from(self.text.is_some() && text.is_some());
-        let mut outs = Vec::with_capacity(2);
-        for (a, h) in [ha, hb].iter().enumerate() {
-            let fut = h.narrow(1, skip + n_obs, self.cfg.pred)?;
-            let delta = self.decode[a].forward(&fut)?;
-            outs.push(delta.broadcast_add(&lasts[a])?.unsqueeze(1)?);
-        }
-        Tensor::cat(&outs, 1)
+        let skip = usize::from(text.is_some());
+        let decode = |a: usize, h: &Tensor| -> Result<Tensor> {
+            let y = match &self.dct {
+                // Decode every coefficient, back to time, keep the future frames.
+                Some(d) => d
+                    .t()?
+                    .broadcast_matmul(&self.decode[a].forward(&h.narrow(1, skip, t)?)?)?
+                    .narrow(1, n_obs, self.cfg.pred)?,
+                None => self.decode[a].forward(&h.narrow(1, skip + n_obs, self.cfg.pred)?)?,
+            };
+            let y = if self.cfg.displacement {
+                y.broadcast_add(&lasts[a])?
+            } else {
+                y
+            };
+            y.unsqueeze(1)
+        };
+        let social = Tensor::cat(&[decode(0, &ha)?, decode(1, &hb)?], 1)?;
+        let individual = Tensor::cat(&[decode(0, &agents[0])?, decode(1, &agents[1])?], 1)?;
+        Ok((social, individual))
     }
 }
 
@@ -313,15 +398,74 @@ pub fn mse(a: &Tensor, b: &Tensor) -> Result<Tensor> {
     (a - b)?.sqr()?.mean_all()
 }
 
-/// Interaction loss: error of the relative root position of B seen from A, per future frame.
+/// Cross product along the last dimension (size 3).
+fn cross(a: &Tensor, b: &Tensor) -> Result<Tensor> {
+    let c = |t: &Tensor, i: usize| t.narrow(D::Minus1, i, 1);
+    let (a0, a1, a2) = (c(a, 0)?, c(a, 1)?, c(a, 2)?);
+    let (b0, b1, b2) = (c(b, 0)?, c(b, 1)?, c(b, 2)?);
+    Tensor::cat(
+        &[
+            (a1.broadcast_mul(&b2)? - a2.broadcast_mul(&b1)?)?,
+            (a2.broadcast_mul(&b0)? - a0.broadcast_mul(&b2)?)?,
+            (a0.broadcast_mul(&b1)? - a1.broadcast_mul(&b0)?)?,
+        ],
+        D::Minus1,
+    )
+}
+
+/// Joint positions in the window frame from features (…, FEATURES) → (…, 22, 3):
+/// `root + q ⊗ local` with the quaternion normalised (differentiable).
+pub fn joint_positions(x: &Tensor) -> Result<Tensor> {
+    let j = echo_motion::skeleton::NUM_JOINTS;
+    let o = 3 * j;
+    let mut shape = x.dims().to_vec();
+    let last = shape.len() - 1;
+    shape[last] = j;
+    shape.push(3);
+    let local = x.narrow(D::Minus1, 0, o)?.reshape(shape.as_slice())?;
+    let root = x.narrow(D::Minus1, o, 3)?.unsqueeze(last)?;
+    let q = x.narrow(D::Minus1, o + 3, 4)?;
+    let q = q.broadcast_div(&(q.sqr()?.sum_keepdim(D::Minus1)?.sqrt()? + 1e-6)?)?;
+    let q = q.unsqueeze(last)?;
+    let (u, w) = (q.narrow(D::Minus1, 0, 3)?, q.narrow(D::Minus1, 3, 1)?);
+    // v' = v + w t + u × t, t = 2 u × v
+    let t = (cross(&u, &local)? * 2.0)?;
+    let rotated = ((&local + t.broadcast_mul(&w)?)? + cross(&u, &t)?)?;
+    rotated.broadcast_add(&root)
+}
+
+/// Interaction loss (paper Eq. 3): MSE between the predicted and true distance matrices of
+/// every joint of A to every joint of B, per future frame. `pred`, `truth`: (b, 2, t, F).
 pub fn interaction_loss(pred: &Tensor, truth: &Tensor) -> Result<Tensor> {
-    let o = 3 * echo_motion::skeleton::NUM_JOINTS;
-    let rel = |x: &Tensor| -> Result<Tensor> {
-        let ra = x.narrow(1, 0, 1)?.narrow(D::Minus1, o, 3)?;
-        let rb = x.narrow(1, 1, 1)?.narrow(D::Minus1, o, 3)?;
-        rb - ra
+    let dm = |x: &Tensor| -> Result<Tensor> {
+        let p = joint_positions(x)?; // (b, 2, t, 22, 3)
+        let a = p.narrow(1, 0, 1)?.squeeze(1)?.unsqueeze(3)?; // (b, t, 22, 1, 3)
+        let b = p.narrow(1, 1, 1)?.squeeze(1)?.unsqueeze(2)?; // (b, t, 1, 22, 3)
+        (a.broadcast_sub(&b)?.sqr()?.sum(D::Minus1)? + 1e-8)?.sqrt()
     };
-    mse(&rel(pred)?, &rel(truth)?)
+    mse(&dm(pred)?, &dm(truth)?)
+}
+
+/// Bone-length loss: MSE between predicted and true bone lengths (local pose), both agents.
+pub fn bone_loss(pred: &Tensor, truth: &Tensor) -> Result<Tensor> {
+    use echo_motion::skeleton::{NUM_JOINTS, PARENTS};
+    let lengths = |x: &Tensor| -> Result<Tensor> {
+        let mut shape = x.dims().to_vec();
+        let last = shape.len() - 1;
+        shape[last] = NUM_JOINTS;
+        shape.push(3);
+        let l = x
+            .narrow(D::Minus1, 0, 3 * NUM_JOINTS)?
+            .reshape(shape.as_slice())?;
+        let child: Vec<u32> = (1..NUM_JOINTS as u32).collect();
+        let parent: Vec<u32> = (1..NUM_JOINTS).map(|k| PARENTS[k] as u32).collect();
+        let n = child.len();
+        let ci = Tensor::from_vec(child, n, x.device())?;
+        let pi = Tensor::from_vec(parent, n, x.device())?;
+        let bones = (l.index_select(&ci, last)? - l.index_select(&pi, last)?)?;
+        (bones.sqr()?.sum(D::Minus1)? + 1e-8)?.sqrt()
+    };
+    mse(&lengths(pred)?, &lengths(truth)?)
 }
 
 #[cfg(test)]
@@ -372,5 +516,121 @@ mod tests {
             .forward(&dummy_obs(2, &cfg, &dev).unwrap(), Some(&text))
             .unwrap();
         assert_eq!(y.dims(), &[2, 2, cfg.pred, FEATURES]);
+    }
+
+    #[test]
+    fn every_ablation_builds_and_starts_at_its_baseline() {
+        let dev = Device::Cpu;
+        let base = ForecasterConfig {
+            d_model: 16,
+            heads: 2,
+            ..Default::default()
+        };
+        let variants = [
+            ForecasterConfig {
+                dct: true,
+                ..base.clone()
+            },
+            ForecasterConfig {
+                temp_mlp: 0,
+                ..base.clone()
+            },
+            ForecasterConfig {
+                interleaved: false,
+                ..base.clone()
+            },
+            ForecasterConfig {
+                rounds: 0,
+                ..base.clone()
+            },
+            ForecasterConfig {
+                displacement: false,
+                ..base.clone()
+            },
+        ];
+        let obs = Tensor::randn(0f32, 1.0, (2, 2, base.obs, FEATURES), &dev).unwrap();
+        let last = obs.narrow(2, base.obs - 1, 1).unwrap();
+        for cfg in variants {
+            let vm = VarMap::new();
+            let m = Forecaster::new(cfg.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev))
+                .unwrap();
+            let (soc, ind) = m.forward_both(&obs, None).unwrap();
+            assert_eq!(soc.dims(), &[2, 2, cfg.pred, FEATURES]);
+            assert_eq!(ind.dims(), soc.dims());
+            let off = soc
+                .broadcast_sub(&last)
+                .unwrap()
+                .abs()
+                .unwrap()
+                .max_all()
+                .unwrap()
+                .to_scalar::<f32>()
+                .unwrap();
+            // Displacement variants (DCT included: Dᵀ·0 = 0) start as "repeat the last frame".
+            assert_eq!(off < 1e-5, cfg.displacement, "{cfg:?}: {off}");
+        }
+        // Wrong input sizes are an error, not a panic.
+        let vm = VarMap::new();
+        let m =
+            Forecaster::new(base.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev)).unwrap();
+        let bad = Tensor::zeros((1, 2, base.obs - 1, FEATURES), DType::F32, &dev).unwrap();
+        assert!(m.forward(&bad, None).is_err());
+    }
+
+    #[test]
+    fn dct_matrix_is_orthonormal() {
+        let d = dct_matrix(31, &Device::Cpu).unwrap();
+        let i = d.matmul(&d.t().unwrap()).unwrap().to_vec2::<f32>().unwrap();
+        for (r, row) in i.iter().enumerate() {
+            for (c, v) in row.iter().enumerate() {
+                let want = if r == c { 1.0 } else { 0.0 };
+                assert!((v - want).abs() < 1e-5);
+            }
+        }
+    }
+
+    #[test]
+    fn joint_positions_match_the_feature_decoder_and_losses_vanish_on_truth() {
+        use crate::features::{decode, encode, Canonical};
+        use echo_motion::synth::{generate, Split};
+        let clip = generate(&Split::Test.clip(5));
+        let c = Canonical::of(&clip.joints(30, 0));
+        let mut feats = vec![];
+        for p in 0..2 {
+            for f in 30..33 {
+                feats.extend_from_slice(&encode(&c, &clip.joints(f, p)));
+            }
+        }
+        let x = Tensor::from_vec(feats.clone(), (1, 2, 3, FEATURES), &Device::Cpu).unwrap();
+        let p = joint_positions(&x)
+            .unwrap()
+            .flatten_all()
+            .unwrap()
+            .to_vec1::<f32>()
+            .unwrap();
+        for (k, f) in feats.chunks(FEATURES).enumerate() {
+            // decode() gives world coordinates, joint_positions() window-frame ones.
+            let want = decode(&c, f);
+            let got: Vec<nalgebra::Vector3<f64>> = (0..echo_motion::skeleton::NUM_JOINTS)
+                .map(|j| {
+                    let o = (k * echo_motion::skeleton::NUM_JOINTS + j) * 3;
+                    nalgebra::Vector3::new(p[o] as f64, p[o + 1] as f64, p[o + 2] as f64)
+                })
+                .collect();
+            for j in 0..echo_motion::skeleton::NUM_JOINTS {
+                let w = c.world_to_window(&want[j]);
+                assert!((got[j] - w).norm() < 1e-4, "joint {j}: {} vs {}", got[j], w);
+            }
+        }
+        assert!(
+            interaction_loss(&x, &x)
+                .unwrap()
+                .to_scalar::<f32>()
+                .unwrap()
+                < 1e-10
+        );
+        assert!(bone_loss(&x, &x).unwrap().to_scalar::<f32>().unwrap() < 1e-10);
+        let y = (&x * 1.1).unwrap();
+        assert!(bone_loss(&y, &x).unwrap().to_scalar::<f32>().unwrap() > 1e-6);
     }
 }

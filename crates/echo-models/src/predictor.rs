@@ -11,22 +11,42 @@ use serde::{Deserialize, Serialize};
 use crate::features::{decode, encode_frames, FEATURES};
 use crate::model::{Forecaster, ForecasterConfig};
 use crate::train::TrainConfig;
+use echo_text::SentenceEncoder;
 
-/// A borrowed model that predicts windows in batches.
+/// A borrowed model that predicts windows in batches (a window's first description is its
+/// prompt when the model reads text).
 pub struct ModelPredictor<'a> {
     model: &'a Forecaster,
     dev: Device,
     name: String,
+    text: Option<&'a SentenceEncoder>,
 }
 
 impl<'a> ModelPredictor<'a> {
-    /// Wrap a model.
-    pub fn new(model: &'a Forecaster, dev: Device, name: &str) -> Self {
+    /// Wrap a model; `text` is needed when the model has a text token.
+    pub fn new(
+        model: &'a Forecaster,
+        dev: Device,
+        name: &str,
+        text: Option<&'a SentenceEncoder>,
+    ) -> Self {
         ModelPredictor {
             model,
             dev,
             name: name.to_string(),
+            text,
         }
+    }
+
+    fn prompts(&self, batch: &[&Window]) -> Option<Tensor> {
+        let cfg = self.model.config();
+        let enc = self.text.filter(|_| cfg.text_dim > 0)?;
+        let texts: Vec<&str> = batch
+            .iter()
+            .map(|w| w.texts.first().map(|s| s.as_str()).unwrap_or(""))
+            .collect();
+        let v = enc.embed(&texts).ok()?;
+        Tensor::from_vec(v.concat(), (batch.len(), enc.dim()), &self.dev).ok()
     }
 }
 
@@ -48,8 +68,9 @@ impl Predictor for ModelPredictor<'_> {
             }
             canon.push(c);
         }
+        let text = self.prompts(batch);
         let out = Tensor::from_vec(data, (batch.len(), 2, cfg.obs, FEATURES), &self.dev)
-            .and_then(|x| self.model.forward(&x, None))
+            .and_then(|x| self.model.forward(&x, text.as_ref()))
             .and_then(|y| y.flatten_all()?.to_vec1::<f32>());
         let Ok(v) = out else {
             // A model failure must not look like a prediction: hold the last frame.
@@ -87,7 +108,7 @@ pub struct CheckpointMeta {
     pub training: TrainConfig,
     /// The command that produced it.
     pub command: String,
-    /// Text encoder id ("none": no text conditioning yet).
+    /// Text encoder id ("none": the model reads no text).
     pub text_encoder: String,
     /// Feature layout.
     pub features: String,
@@ -99,6 +120,8 @@ pub struct Checkpoint {
     pub model: Forecaster,
     /// Its metadata.
     pub meta: CheckpointMeta,
+    /// The sentence encoder it was trained with (when it reads text).
+    pub text: Option<SentenceEncoder>,
     dev: Device,
 }
 
@@ -116,7 +139,8 @@ impl Checkpoint {
         Ok(())
     }
 
-    /// Load `<stem>.safetensors` and `<stem>.json`; a missing tensor is named.
+    /// Load `<stem>.safetensors` and `<stem>.json`, and the sentence encoder the model was
+    /// trained with when it reads text; a missing tensor or encoder is named.
     pub fn load(stem: &Path, dev: &Device) -> anyhow::Result<Checkpoint> {
         let jp = stem.with_extension("json");
         let meta: CheckpointMeta = serde_json::from_slice(
@@ -128,15 +152,31 @@ impl Checkpoint {
         let vb = VarBuilder::from_buffered_safetensors(bytes, DType::F32, dev)?;
         let model = Forecaster::new(meta.model.clone(), vb)
             .map_err(|e| anyhow::anyhow!("{}: {e}", wp.display()))?;
+        let text = if meta.model.text_dim > 0 {
+            let enc = SentenceEncoder::load_default(dev)?;
+            anyhow::ensure!(
+                enc.id() == meta.text_encoder && enc.dim() == meta.model.text_dim,
+                "{}: trained with {} ({}-d), found {} ({}-d)",
+                jp.display(),
+                meta.text_encoder,
+                meta.model.text_dim,
+                enc.id(),
+                enc.dim()
+            );
+            Some(enc)
+        } else {
+            None
+        };
         Ok(Checkpoint {
             model,
             meta,
+            text,
             dev: dev.clone(),
         })
     }
 
     /// A predictor over this checkpoint.
     pub fn predictor(&self, name: &str) -> ModelPredictor<'_> {
-        ModelPredictor::new(&self.model, self.dev.clone(), name)
+        ModelPredictor::new(&self.model, self.dev.clone(), name, self.text.as_ref())
     }
 }

@@ -1,27 +1,78 @@
-//! `echoctl train forecaster`: train the dual-agent forecaster on generated interactions.
+//! `echoctl train forecaster`: train the dual-agent forecaster (or one of its ablations) on
+//! generated interactions; writes the checkpoint, the loss curve (CSV and PNG) and a resumable
+//! state after every epoch.
 
 use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Result;
+use echo_eval::render::{chart, Curve, Panel};
 use echo_models::model::ForecasterConfig;
-use echo_models::train::{train, TrainConfig};
+use echo_models::train::{train, EpochLog, Progress, Run, TrainConfig};
 use echo_models::{Checkpoint, CheckpointMeta};
+use echo_text::SentenceEncoder;
 
 use super::data::progress;
+
+/// The paper's Table 3 rows, plus the single-agent variant.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Variant {
+    /// The full model.
+    Full,
+    /// Without the text token.
+    NoText,
+    /// Without the displacement baseline: the decoder outputs the future frames.
+    NoBaseline,
+    /// Tokens are DCT coefficients.
+    Dct,
+    /// Without the temporal MLP blocks.
+    NoTempmlp,
+    /// Sequential instead of interleaved cross-attention.
+    Sequential,
+    /// Without the individual loss L_self.
+    NoIndLoss,
+    /// No cross-attention at all: each agent forecast alone.
+    SingleAgent,
+}
+
+impl Variant {
+    /// Apply to the default architecture and training settings.
+    pub fn apply(self, m: &mut ForecasterConfig, t: &mut TrainConfig) {
+        match self {
+            Variant::Full => {}
+            Variant::NoText => m.text_dim = 0,
+            Variant::NoBaseline => m.displacement = false,
+            Variant::Dct => m.dct = true,
+            Variant::NoTempmlp => m.temp_mlp = 0,
+            Variant::Sequential => m.interleaved = false,
+            Variant::NoIndLoss => t.w_self = 0.0,
+            Variant::SingleAgent => {
+                m.rounds = 0;
+                t.w_interaction = 0.0;
+            }
+        }
+    }
+}
 
 /// Options.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
     /// What to train (forecaster).
     pub what: String,
-    /// Output stem: writes <out>.safetensors, <out>.json and <out>.loss.csv.
+    /// Output stem: writes <out>.safetensors, <out>.json, <out>.loss.csv, <out>.loss.png and
+    /// the resumable state <out>.resume/.
     #[arg(long, default_value = "models/forecaster")]
     pub out: PathBuf,
+    /// Model variant (ablations of the paper's Table 3).
+    #[arg(long, value_enum, default_value_t = Variant::Full)]
+    pub variant: Variant,
+    /// Continue an interrupted run from <out>.resume/.
+    #[arg(long)]
+    pub resume: bool,
     /// Training clips.
     #[arg(long, default_value_t = 2600)]
     pub train_clips: u64,
-    /// Wall-clock budget, minutes.
+    /// Wall-clock budget of this run, minutes.
     #[arg(long, default_value_t = 15.0)]
     pub max_minutes: f64,
     /// Epochs at most.
@@ -30,12 +81,75 @@ pub struct Args {
     /// Model width.
     #[arg(long, default_value_t = 64)]
     pub d_model: usize,
-    /// Cross-attention rounds (0: single-agent variant).
+    /// Cross-attention rounds.
     #[arg(long, default_value_t = 2)]
     pub rounds: usize,
     /// Seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+}
+
+struct Bar {
+    pb: indicatif::ProgressBar,
+    csv: std::fs::File,
+    log: Vec<EpochLog>,
+}
+
+impl Progress for Bar {
+    fn step(&mut self, k: usize, n: usize, loss: f64) {
+        self.pb.set_length(n as u64);
+        self.pb.set_position(k as u64);
+        self.pb.set_message(format!("loss {loss:.4}"));
+    }
+
+    fn epoch(&mut self, e: &EpochLog) {
+        // Printed, not drawn: the epoch summary must also reach logs (no terminal).
+        self.pb.suspend(|| {
+            println!(
+                "epoch {}: train loss {:.4}, validation JPE {} mm ({:.0} s)",
+                e.epoch,
+                e.train_loss,
+                e.val_jpe
+                    .iter()
+                    .map(|x| format!("{x:.1}"))
+                    .collect::<Vec<_>>()
+                    .join(" / "),
+                e.elapsed_s
+            )
+        });
+        let _ = writeln!(
+            self.csv,
+            "{},{:.6},{},{:.1}",
+            e.epoch,
+            e.train_loss,
+            e.val_jpe
+                .iter()
+                .map(|x| format!("{x:.2}"))
+                .collect::<Vec<_>>()
+                .join(","),
+            e.elapsed_s
+        );
+        self.log.push(e.clone());
+    }
+}
+
+/// Loss curves as a PNG: training loss (left); validation JPE at 0.2/0.5/1.0/1.5 s (right).
+pub fn loss_png(path: &std::path::Path, log: &[EpochLog]) -> Result<()> {
+    let loss = Curve {
+        points: log.iter().map(|e| (e.epoch as f64, e.train_loss)).collect(),
+        rgb: [30, 30, 30],
+    };
+    let colours = [[40, 120, 220], [40, 170, 80], [230, 140, 20], [200, 40, 40]];
+    let jpe = (0..4)
+        .map(|h| Curve {
+            points: log
+                .iter()
+                .filter_map(|e| e.val_jpe.get(h).map(|v| (e.epoch as f64, *v)))
+                .collect(),
+            rgb: colours[h],
+        })
+        .collect();
+    chart(path, &[Panel { curves: vec![loss] }, Panel { curves: jpe }]).map_err(anyhow::Error::msg)
 }
 
 /// Train and save.
@@ -45,82 +159,74 @@ pub fn run(args: Args) -> Result<()> {
         "only 'forecaster' can be trained so far, not '{}'",
         args.what
     );
-    let model = ForecasterConfig {
+    let dev = candle_core::Device::Cpu;
+    let mut model = ForecasterConfig {
         d_model: args.d_model,
         rounds: args.rounds,
+        text_dim: echo_text::MINILM_DIM,
         ..Default::default()
     };
-    let t = TrainConfig {
+    let mut t = TrainConfig {
         train_clips: args.train_clips,
         max_minutes: args.max_minutes,
         epochs: args.epochs,
         seed: args.seed,
         ..Default::default()
     };
-    let dev = candle_core::Device::Cpu;
-    let pb = progress(0, "training");
+    args.variant.apply(&mut model, &mut t);
+    let text = if model.text_dim > 0 {
+        Some(SentenceEncoder::load_default(&dev)?)
+    } else {
+        None
+    };
     let csv_path = args.out.with_extension("loss.csv");
     if let Some(d) = csv_path.parent() {
         std::fs::create_dir_all(d)?;
     }
-    let mut csv = std::fs::File::create(&csv_path)?;
-    writeln!(
+    let mut csv = if args.resume {
+        std::fs::OpenOptions::new().append(true).open(&csv_path)?
+    } else {
+        std::fs::File::create(&csv_path)?
+    };
+    if !args.resume {
+        writeln!(
+            csv,
+            "epoch,train_loss,val_jpe_0.2,val_jpe_0.5,val_jpe_1.0,val_jpe_1.5,elapsed_s"
+        )?;
+    }
+    let mut bar = Bar {
+        pb: progress(0, "training"),
         csv,
-        "epoch,train_loss,val_jpe_0.2,val_jpe_0.5,val_jpe_1.0,val_jpe_1.5,elapsed_s"
-    )?;
-    let (varmap, log) = train(
-        &model,
-        &t,
-        &dev,
-        |k, n, loss| {
-            pb.set_length(n as u64);
-            pb.set_position(k as u64);
-            pb.set_message(format!("loss {loss:.4}"));
-        },
-        |e| {
-            // Printed, not drawn: the epoch summary must also reach logs (no terminal).
-            pb.suspend(|| {
-                println!(
-                    "epoch {}: train loss {:.4}, validation JPE {} mm ({:.0} s)",
-                    e.epoch,
-                    e.train_loss,
-                    e.val_jpe
-                        .iter()
-                        .map(|x| format!("{x:.1}"))
-                        .collect::<Vec<_>>()
-                        .join(" / "),
-                    e.elapsed_s
-                )
-            });
-            let _ = writeln!(
-                csv,
-                "{},{:.6},{},{:.1}",
-                e.epoch,
-                e.train_loss,
-                e.val_jpe
-                    .iter()
-                    .map(|x| format!("{x:.2}"))
-                    .collect::<Vec<_>>()
-                    .join(","),
-                e.elapsed_s
-            );
-        },
-    )?;
-    pb.finish_and_clear();
+        log: vec![],
+    };
+    let run = Run {
+        dev: dev.clone(),
+        text: text.as_ref(),
+        state: Some(args.out.clone()),
+        resume: args.resume,
+    };
+    let (varmap, log) = train(&model, &t, &run, &mut bar)?;
+    bar.pb.finish_and_clear();
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     let meta = CheckpointMeta {
         model,
         training: t,
         command,
-        text_encoder: "none".into(),
+        text_encoder: text
+            .as_ref()
+            .map(|e| e.id().to_string())
+            .unwrap_or_else(|| "none".into()),
         features: "per agent and frame: 22 joints relative to the pelvis in the heading frame (66), pelvis xyz (3), heading quaternion xyzw (4); window frame at A's last observed pelvis and heading".into(),
     };
     Checkpoint::save(&varmap, &meta, &args.out)?;
+    let png = args.out.with_extension("loss.png");
+    loss_png(&png, &log)?;
     println!(
-        "{} epochs; saved {}.safetensors/.json, loss curve {}",
+        "{} epochs; saved {}.safetensors/.json, loss curve {} and {}",
         log.len(),
         args.out.display(),
-        csv_path.display()
+        csv_path.display(),
+        png.display()
     );
     Ok(())
 }
