@@ -1,10 +1,12 @@
 //! The dual-agent social forecaster in candle: window features, the model, training, and a
 //! [`echo_eval::Predictor`] so the evaluation harness scores it like any baseline.
 
+pub mod backend;
 pub mod features;
 pub mod model;
 pub mod optim;
 pub mod predictor;
 pub mod train;
 
+pub use backend::{Backend, CandleBackend};
 pub use predictor::{Checkpoint, CheckpointMeta, ModelPredictor};

@@ -551,7 +551,12 @@ mod tests {
         assert!(close(&ra[0].val_jpe, &first[0].val_jpe));
         assert_eq!(ra[1].epoch, 1);
         assert!((ra[1].train_loss - rb[1].train_loss).abs() < 1e-9);
-        assert!(close(&ra[1].val_jpe, &rb[1].val_jpe), "{:?} vs {:?}", ra[1], rb[1]);
+        assert!(
+            close(&ra[1].val_jpe, &rb[1].val_jpe),
+            "{:?} vs {:?}",
+            ra[1],
+            rb[1]
+        );
         let state: TrainState = serde_json::from_slice(&std::fs::read(&sa.state).unwrap()).unwrap();
         assert_eq!(state.next_epoch, 2);
         // A different model cannot resume this state.

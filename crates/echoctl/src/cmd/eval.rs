@@ -25,9 +25,10 @@ pub struct Args {
     /// Window stride, frames at 15 Hz.
     #[arg(long, default_value_t = 8)]
     pub stride: usize,
-    /// Also score a trained forecaster checkpoint (stem of .safetensors/.json).
+    /// Also score trained forecaster checkpoints (stems of .safetensors/.json; repeatable;
+    /// named by the file stem in the tables).
     #[arg(long)]
-    pub model: Option<PathBuf>,
+    pub model: Vec<PathBuf>,
     /// Write the reports as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -54,9 +55,13 @@ pub fn run(args: Args) -> Result<()> {
         .iter_mut()
         .map(|p| evaluate(p.as_mut(), &w, 64))
         .collect();
-    if let Some(stem) = &args.model {
+    for stem in &args.model {
         let ck = echo_models::Checkpoint::load(stem, &candle_core::Device::Cpu)?;
-        let mut p = ck.predictor(&format!("forecaster ({})", stem.display()));
+        let name = stem
+            .file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| stem.display().to_string());
+        let mut p = ck.predictor(&name);
         reports.push(evaluate(&mut p, &w, 64));
     }
     println!(

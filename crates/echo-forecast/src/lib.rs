@@ -1,0 +1,16 @@
+//! Online forecasting for the forecaster service, independent of the network:
+//!
+//! - [`history`]: a per-robot ring buffer of both agents at the model rate; short gaps are
+//!   filled by interpolation (and counted), long gaps or reordered frames reset or are rejected;
+//! - [`proxy`]: the robot as the second agent — its kinematic points (FK from the URDF) laid on
+//!   the 22-joint skeleton, so a human-human model sees where the robot's hands and head are;
+//! - [`server`]: agent pairing per robot, prompts (embedded once, cached), and one batched
+//!   forward pass for every robot whose history advanced, producing [`echo_msgs::Forecast`]s.
+
+pub mod history;
+pub mod proxy;
+pub mod server;
+
+pub use history::{History, HistoryError, Push};
+pub use proxy::RobotProxy;
+pub use server::{ForecastServer, ServeError, ServerConfig};

@@ -1,0 +1,578 @@
+//! The forecaster's per-robot state and batched inference, with no network in sight: the
+//! service feeds it decoded messages and publishes what [`ForecastServer::run_batch`] returns.
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use echo_models::features::{decode, encode_frames, FEATURES};
+use echo_models::Backend;
+use echo_motion::skeleton::NUM_JOINTS;
+use echo_msgs::{Forecast, Header, HumanSkeletons, HumanTrack, InteractionIntent, JointState};
+use echo_robot::RobotModel;
+use echo_text::SentenceEncoder;
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+use crate::history::{History, HistoryError, Pair, Push};
+use crate::proxy::RobotProxy;
+
+/// Serving settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ServerConfig {
+    /// Model rate, Hz (the skeleton stream's rate).
+    pub rate_hz: f64,
+    /// Longest gap filled by interpolation, frames; longer gaps restart the history.
+    pub max_fill_frames: usize,
+    /// Prompt used until one arrives on `prompt`.
+    pub default_prompt: String,
+    /// Another person closer than this to the partner is the second agent; otherwise the robot
+    /// is, m.
+    pub pair_distance_m: f64,
+    /// A person without a `partner_id` is the partner when nearer than this to the robot, m.
+    pub partner_range_m: f64,
+}
+
+impl Default for ServerConfig {
+    fn default() -> Self {
+        ServerConfig {
+            rate_hz: 15.0,
+            max_fill_frames: 3,
+            default_prompt:
+                "One person approaches the other and greets them, and the other greets back.".into(),
+            pair_distance_m: 2.5,
+            partner_range_m: 4.0,
+        }
+    }
+}
+
+/// Why an input was not used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ServeError {
+    /// Out-of-order skeleton frame.
+    #[error(transparent)]
+    History(#[from] HistoryError),
+    /// The model failed on a batch.
+    #[error("model: {0}")]
+    Model(String),
+    /// The prompt could not be embedded.
+    #[error("prompt: {0}")]
+    Prompt(String),
+}
+
+impl ServeError {
+    /// Short reason for counters.
+    pub fn reason(&self) -> &'static str {
+        match self {
+            ServeError::History(h) => h.reason(),
+            ServeError::Model(_) => "model",
+            ServeError::Prompt(_) => "prompt",
+        }
+    }
+}
+
+/// Who the second agent is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Other {
+    /// Another tracked person.
+    Person(u32),
+    /// The robot itself (its kinematic stand-in).
+    Robot,
+}
+
+struct Slot {
+    history: History,
+    pair: Option<(u32, Other)>,
+    prompt: String,
+    proxy: RobotProxy,
+    /// Stamp of the newest frame not forecast yet.
+    pending: Option<u64>,
+    filled: u64,
+    restarts: u64,
+}
+
+/// Counters across robots.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Counters {
+    /// Frames interpolated into gaps.
+    pub filled: u64,
+    /// Histories restarted after a long gap or a new partner.
+    pub restarts: u64,
+    /// Batches run.
+    pub batches: u64,
+    /// Forecasts produced.
+    pub forecasts: u64,
+}
+
+/// Per-robot histories and one backend shared by all robots.
+pub struct ForecastServer {
+    cfg: ServerConfig,
+    backend: Box<dyn Backend>,
+    text: Option<SentenceEncoder>,
+    model_name: String,
+    robot_model: RobotModel,
+    slots: BTreeMap<String, Slot>,
+    counters: Counters,
+}
+
+fn v3(p: &[f64; 3]) -> Vector3<f64> {
+    Vector3::new(p[0], p[1], p[2])
+}
+
+fn joints(t: &HumanTrack) -> [Vector3<f64>; NUM_JOINTS] {
+    std::array::from_fn(|k| t.pose.joints.get(k).map(v3).unwrap_or_else(Vector3::zeros))
+}
+
+impl ForecastServer {
+    /// `text` must be given when the backend's model reads text.
+    pub fn new(
+        cfg: ServerConfig,
+        backend: Box<dyn Backend>,
+        text: Option<SentenceEncoder>,
+        model_name: &str,
+        robot_model: RobotModel,
+    ) -> anyhow::Result<ForecastServer> {
+        let dim = backend.config().text_dim;
+        anyhow::ensure!(
+            dim == 0 || text.as_ref().is_some_and(|e| e.dim() == dim),
+            "the model reads {dim}-d prompt embeddings: a sentence encoder of that size is needed"
+        );
+        if let Some(e) = &text {
+            // Warm the cache with the default prompt: the first tick stays fast.
+            e.embed_one(&cfg.default_prompt)
+                .map_err(|e| anyhow::anyhow!("embedding the default prompt: {e}"))?;
+        }
+        Ok(ForecastServer {
+            cfg,
+            backend,
+            text,
+            model_name: model_name.to_string(),
+            robot_model,
+            slots: BTreeMap::new(),
+            counters: Counters::default(),
+        })
+    }
+
+    /// Settings.
+    pub fn config(&self) -> &ServerConfig {
+        &self.cfg
+    }
+
+    /// Backend name.
+    pub fn backend_name(&self) -> String {
+        self.backend.name()
+    }
+
+    /// Counters.
+    pub fn counters(&self) -> Counters {
+        self.counters.clone()
+    }
+
+    /// Robots with a history.
+    pub fn robots(&self) -> Vec<String> {
+        self.slots.keys().cloned().collect()
+    }
+
+    /// The current pairing of `robot`: (partner track, second agent).
+    pub fn pairing(&self, robot: &str) -> Option<(u32, Other)> {
+        self.slots.get(robot).and_then(|s| s.pair)
+    }
+
+    fn slot(&mut self, robot: &str) -> &mut Slot {
+        let obs = self.backend.config().obs;
+        let (rate, fill, prompt) = (
+            self.cfg.rate_hz,
+            self.cfg.max_fill_frames,
+            self.cfg.default_prompt.clone(),
+        );
+        let model = &self.robot_model;
+        self.slots.entry(robot.to_string()).or_insert_with(|| Slot {
+            history: History::new(rate, 2 * obs, fill),
+            pair: None,
+            prompt,
+            proxy: RobotProxy::new(model.clone()),
+            pending: None,
+            filled: 0,
+            restarts: 0,
+        })
+    }
+
+    /// A robot's measured joints (for its stand-in as the second agent).
+    pub fn on_joint_state(&mut self, robot: &str, js: &JointState) {
+        self.slot(robot).proxy.update(js);
+    }
+
+    /// A new prompt for `robot`; it is embedded now so the next tick does not wait for it.
+    pub fn on_prompt(&mut self, robot: &str, intent: &InteractionIntent) -> Result<(), ServeError> {
+        let text = if intent.text.trim().is_empty() {
+            self.cfg.default_prompt.clone()
+        } else {
+            intent.text.clone()
+        };
+        if let Some(e) = &self.text {
+            e.embed_one(&text)
+                .map_err(|e| ServeError::Prompt(e.to_string()))?;
+        }
+        self.slot(robot).prompt = text;
+        Ok(())
+    }
+
+    /// Choose the partner and the second agent of a skeleton frame.
+    fn choose(&self, msg: &HumanSkeletons) -> Option<(u32, Other)> {
+        let partner = match msg.partner_id {
+            Some(id) => msg.tracks.iter().find(|t| t.track_id == id)?,
+            None => msg
+                .tracks
+                .iter()
+                .filter(|t| v3(&t.pose.root_position).xy().norm() < self.cfg.partner_range_m)
+                .min_by(|a, b| {
+                    let da = v3(&a.pose.root_position).xy().norm();
+                    let db = v3(&b.pose.root_position).xy().norm();
+                    da.total_cmp(&db)
+                })?,
+        };
+        let p = v3(&partner.pose.root_position);
+        let other = msg
+            .tracks
+            .iter()
+            .filter(|t| t.track_id != partner.track_id)
+            .map(|t| (t.track_id, (v3(&t.pose.root_position) - p).xy().norm()))
+            .filter(|(_, d)| *d < self.cfg.pair_distance_m)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(id, _)| Other::Person(id))
+            .unwrap_or(Other::Robot);
+        Some((partner.track_id, other))
+    }
+
+    /// A skeleton frame of `robot` (validated by the bus). Returns what happened to the
+    /// history, or `None` when nobody is there to forecast.
+    pub fn on_skeletons(
+        &mut self,
+        robot: &str,
+        msg: &HumanSkeletons,
+    ) -> Result<Option<Push>, ServeError> {
+        let obs = self.backend.config().obs;
+        let choice = self.choose(msg);
+        let slot = self.slot(robot);
+        let Some((pid, other)) = choice else {
+            slot.history.clear();
+            slot.pair = None;
+            slot.pending = None;
+            return Ok(None);
+        };
+        if slot.pair != Some((pid, other)) {
+            if slot.pair.is_some() {
+                slot.restarts += 1;
+            }
+            slot.history.clear();
+            slot.pair = Some((pid, other));
+        }
+        let track = |id: u32| msg.tracks.iter().find(|t| t.track_id == id);
+        let a = joints(track(pid).expect("chosen from these tracks"));
+        let b = match other {
+            Other::Person(id) => joints(track(id).expect("chosen from these tracks")),
+            Other::Robot => slot.proxy.joints(),
+        };
+        let pair: Pair = [a, b];
+        let push = slot.history.push(msg.header.stamp_ns, pair)?;
+        match push {
+            Push::Filled { filled } => slot.filled += filled as u64,
+            Push::Restarted { .. } => slot.restarts += 1,
+            Push::Appended => {}
+        }
+        if slot.history.len() >= obs {
+            slot.pending = Some(msg.header.stamp_ns);
+        }
+        Ok(Some(push))
+    }
+
+    /// Robots waiting for a forecast.
+    pub fn pending(&self) -> usize {
+        self.slots.values().filter(|s| s.pending.is_some()).count()
+    }
+
+    /// One forward pass for every robot with a new frame; a forecast per robot.
+    pub fn run_batch(&mut self) -> Vec<(String, Result<Forecast, ServeError>)> {
+        let cfg = self.backend.config().clone();
+        let mut robots = vec![];
+        let mut canon = vec![];
+        let mut obs = vec![];
+        let mut prompts: Vec<String> = vec![];
+        for (name, slot) in self.slots.iter_mut() {
+            let Some(stamp) = slot.pending.take() else {
+                continue;
+            };
+            let Some(frames) = slot.history.last(cfg.obs) else {
+                continue;
+            };
+            let frames: Vec<Vec<[Vector3<f64>; NUM_JOINTS]>> =
+                frames.iter().map(|p| p.to_vec()).collect();
+            let (c, agents) = encode_frames(&frames);
+            for a in &agents {
+                for f in a {
+                    obs.extend_from_slice(f);
+                }
+            }
+            canon.push(c);
+            prompts.push(slot.prompt.clone());
+            robots.push((name.clone(), stamp, slot.pair.map(|p| p.0).unwrap_or(0)));
+        }
+        if robots.is_empty() {
+            return vec![];
+        }
+        let b = robots.len();
+        let text: Vec<f32> = match (&self.text, cfg.text_dim > 0) {
+            (Some(e), true) => {
+                let refs: Vec<&str> = prompts.iter().map(|s| s.as_str()).collect();
+                match e.embed(&refs) {
+                    Ok(v) => v.concat(),
+                    Err(err) => {
+                        return robots
+                            .into_iter()
+                            .map(|(r, ..)| (r, Err(ServeError::Prompt(err.to_string()))))
+                            .collect()
+                    }
+                }
+            }
+            _ => vec![],
+        };
+        let started = Instant::now();
+        let out = self.backend.predict(b, &obs, &text);
+        let ms = started.elapsed().as_secs_f64() * 1e3;
+        self.counters.batches += 1;
+        let out = match out {
+            Ok(v) if v.len() == b * 2 * cfg.pred * FEATURES && v.iter().all(|x| x.is_finite()) => v,
+            Ok(v) => {
+                let msg = format!(
+                    "{} values (finite: {})",
+                    v.len(),
+                    v.iter().all(|x| x.is_finite())
+                );
+                return robots
+                    .into_iter()
+                    .map(|(r, ..)| (r, Err(ServeError::Model(msg.clone()))))
+                    .collect();
+            }
+            Err(e) => {
+                return robots
+                    .into_iter()
+                    .map(|(r, ..)| (r, Err(ServeError::Model(e.to_string()))))
+                    .collect()
+            }
+        };
+        let per = 2 * cfg.pred * FEATURES;
+        let mut res = Vec::with_capacity(b);
+        for (i, ((robot, stamp, partner), c)) in robots.into_iter().zip(canon).enumerate() {
+            let human = (0..cfg.pred)
+                .map(|k| {
+                    let o = i * per + k * FEATURES;
+                    decode(&c, &out[o..o + FEATURES])
+                        .iter()
+                        .map(|p| [p.x, p.y, p.z])
+                        .collect()
+                })
+                .collect();
+            let mut header = Header::new(&robot, "", "base_footprint");
+            header.stamp_ns = stamp;
+            self.counters.forecasts += 1;
+            res.push((
+                robot,
+                Ok(Forecast {
+                    header,
+                    model: self.model_name.clone(),
+                    rate_hz: self.cfg.rate_hz,
+                    partner_id: partner,
+                    human,
+                    robot: None,
+                    inference_ms: ms,
+                }),
+            ));
+        }
+        self.counters.filled = self.slots.values().map(|s| s.filled).sum();
+        self.counters.restarts = self.slots.values().map(|s| s.restarts).sum();
+        res
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use echo_models::model::ForecasterConfig;
+    use echo_msgs::HumanPose;
+    use std::sync::{Arc, Mutex};
+
+    /// Repeats each agent's last observed frame; records batch sizes; can fail on demand.
+    struct Hold {
+        cfg: ForecasterConfig,
+        batches: Arc<Mutex<Vec<usize>>>,
+        nan: bool,
+    }
+
+    impl Backend for Hold {
+        fn name(&self) -> String {
+            "hold".into()
+        }
+        fn config(&self) -> &ForecasterConfig {
+            &self.cfg
+        }
+        fn predict(&mut self, b: usize, obs: &[f32], text: &[f32]) -> anyhow::Result<Vec<f32>> {
+            echo_models::backend::check_sizes(&self.cfg, b, obs, text)?;
+            self.batches.lock().unwrap().push(b);
+            let mut out = vec![];
+            for i in 0..b {
+                for a in 0..2 {
+                    let o = ((i * 2 + a) * self.cfg.obs + self.cfg.obs - 1) * FEATURES;
+                    for _ in 0..self.cfg.pred {
+                        out.extend_from_slice(&obs[o..o + FEATURES]);
+                    }
+                }
+            }
+            if self.nan {
+                out[0] = f32::NAN;
+            }
+            Ok(out)
+        }
+    }
+
+    fn server(nan: bool) -> (ForecastServer, Arc<Mutex<Vec<usize>>>) {
+        let batches = Arc::new(Mutex::new(vec![]));
+        let backend = Hold {
+            cfg: ForecasterConfig::default(),
+            batches: batches.clone(),
+            nan,
+        };
+        let s = ForecastServer::new(
+            ServerConfig::default(),
+            Box::new(backend),
+            None,
+            "hold",
+            RobotModel::tiago_dual(),
+        )
+        .unwrap();
+        (s, batches)
+    }
+
+    fn person(id: u32, x: f64, y: f64) -> HumanTrack {
+        let clip = echo_motion::synth::generate(&echo_motion::synth::Split::Test.clip(1));
+        let j = clip.joints(0, 0);
+        let root = j[0];
+        let joints: Vec<[f64; 3]> = j
+            .iter()
+            .map(|p| [p.x - root.x + x, p.y - root.y + y, p.z])
+            .collect();
+        HumanTrack {
+            track_id: id,
+            pose: HumanPose {
+                root_position: joints[0],
+                joints,
+                root_orientation: [0.0, 0.0, 0.0, 1.0],
+                local_positions: vec![],
+                local_rotations: vec![],
+                confidence: vec![1.0; NUM_JOINTS],
+            },
+            root_velocity: [0.0; 3],
+            age_frames: 1,
+            filled_joints: vec![],
+        }
+    }
+
+    fn frame(robot: &str, k: u64, tracks: Vec<HumanTrack>, partner: Option<u32>) -> HumanSkeletons {
+        let mut header = Header::new(robot, "test", "base_footprint");
+        header.stamp_ns = 1_000_000_000 + k * 66_666_667;
+        HumanSkeletons {
+            header,
+            rate_hz: 15.0,
+            tracks,
+            partner_id: partner,
+        }
+    }
+
+    #[test]
+    fn robots_that_advance_together_share_one_forward_pass() {
+        let (mut s, batches) = server(false);
+        for k in 0..8 {
+            for r in ["r1", "r2", "r3"] {
+                s.on_skeletons(r, &frame(r, k, vec![person(7, 1.5, 0.0)], None))
+                    .unwrap();
+            }
+            if k < 7 {
+                assert!(s.run_batch().is_empty(), "not enough history yet");
+            }
+        }
+        assert_eq!(s.pending(), 3);
+        let out = s.run_batch();
+        assert_eq!(out.len(), 3);
+        assert_eq!(*batches.lock().unwrap(), vec![3]);
+        for (r, f) in out {
+            let f = f.unwrap();
+            assert_eq!(f.header.robot_id, r);
+            assert_eq!(
+                f.header.stamp_ns,
+                frame(&r, 7, vec![], None).header.stamp_ns
+            );
+            assert_eq!(f.human.len(), 23);
+            assert_eq!(f.partner_id, 7);
+            // The hold backend repeats the last frame: decoding gives back the partner's joints.
+            let last = person(7, 1.5, 0.0);
+            for (p, q) in f.human[22].iter().zip(&last.pose.joints) {
+                for d in 0..3 {
+                    assert!((p[d] - q[d]).abs() < 1e-4, "{p:?} vs {q:?}");
+                }
+            }
+        }
+        assert_eq!(s.pending(), 0, "each frame is forecast once");
+    }
+
+    #[test]
+    fn pairs_the_partner_with_a_nearby_person_or_else_the_robot() {
+        let (mut s, _) = server(false);
+        s.on_skeletons("r", &frame("r", 0, vec![person(1, 1.5, 0.0)], None))
+            .unwrap();
+        assert_eq!(s.pairing("r"), Some((1, Other::Robot)));
+        let two = vec![
+            person(1, 1.5, 0.0),
+            person(2, 2.5, 0.5),
+            person(3, 9.0, 0.0),
+        ];
+        s.on_skeletons("r", &frame("r", 1, two.clone(), Some(2)))
+            .unwrap();
+        assert_eq!(s.pairing("r"), Some((2, Other::Person(1))));
+        // Nobody in range: the history is dropped, nothing is pending.
+        s.on_skeletons("r", &frame("r", 2, vec![person(3, 9.0, 0.0)], None))
+            .unwrap();
+        assert_eq!(s.pairing("r"), None);
+        assert_eq!(s.pending(), 0);
+    }
+
+    #[test]
+    fn reordered_frames_are_refused_and_gaps_are_filled() {
+        let (mut s, _) = server(false);
+        for k in [0, 1, 2, 5, 6] {
+            s.on_skeletons("r", &frame("r", k, vec![person(1, 1.5, 0.0)], None))
+                .unwrap();
+        }
+        let e = s
+            .on_skeletons("r", &frame("r", 4, vec![person(1, 1.5, 0.0)], None))
+            .unwrap_err();
+        assert_eq!(e.reason(), "reordered");
+        // 0,1,2,(3,4 filled),5,6 = 7 frames; one more makes the 8 the model observes.
+        assert_eq!(s.pending(), 0);
+        s.on_skeletons("r", &frame("r", 7, vec![person(1, 1.5, 0.0)], None))
+            .unwrap();
+        assert_eq!(s.pending(), 1);
+        assert_eq!(s.run_batch().len(), 1);
+        assert_eq!(s.counters().filled, 2);
+    }
+
+    #[test]
+    fn a_model_that_returns_garbage_publishes_nothing() {
+        let (mut s, _) = server(true);
+        for k in 0..8 {
+            s.on_skeletons("r", &frame("r", k, vec![person(1, 1.5, 0.0)], None))
+                .unwrap();
+        }
+        let out = s.run_batch();
+        assert_eq!(out.len(), 1);
+        assert_eq!(out[0].1.as_ref().unwrap_err().reason(), "model");
+    }
+}
