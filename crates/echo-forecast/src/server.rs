@@ -399,57 +399,39 @@ mod tests {
     use super::*;
     use echo_models::model::ForecasterConfig;
     use echo_msgs::HumanPose;
-    use std::sync::{Arc, Mutex};
 
-    /// Repeats each agent's last observed frame; records batch sizes; can fail on demand.
-    struct Hold {
-        cfg: ForecasterConfig,
-        batches: Arc<Mutex<Vec<usize>>>,
-        nan: bool,
-    }
+    /// Zero velocity, with a NaN in its output when asked.
+    struct Broken(echo_models::ZeroVelocityBackend);
 
-    impl Backend for Hold {
+    impl Backend for Broken {
         fn name(&self) -> String {
-            "hold".into()
+            "broken".into()
         }
         fn config(&self) -> &ForecasterConfig {
-            &self.cfg
+            self.0.config()
         }
         fn predict(&mut self, b: usize, obs: &[f32], text: &[f32]) -> anyhow::Result<Vec<f32>> {
-            echo_models::backend::check_sizes(&self.cfg, b, obs, text)?;
-            self.batches.lock().unwrap().push(b);
-            let mut out = vec![];
-            for i in 0..b {
-                for a in 0..2 {
-                    let o = ((i * 2 + a) * self.cfg.obs + self.cfg.obs - 1) * FEATURES;
-                    for _ in 0..self.cfg.pred {
-                        out.extend_from_slice(&obs[o..o + FEATURES]);
-                    }
-                }
-            }
-            if self.nan {
-                out[0] = f32::NAN;
-            }
-            Ok(out)
+            let mut v = self.0.predict(b, obs, text)?;
+            v[0] = f32::NAN;
+            Ok(v)
         }
     }
 
-    fn server(nan: bool) -> (ForecastServer, Arc<Mutex<Vec<usize>>>) {
-        let batches = Arc::new(Mutex::new(vec![]));
-        let backend = Hold {
-            cfg: ForecasterConfig::default(),
-            batches: batches.clone(),
-            nan,
+    fn server(nan: bool) -> ForecastServer {
+        let zv = echo_models::ZeroVelocityBackend::new(ForecasterConfig::default());
+        let backend: Box<dyn Backend> = if nan {
+            Box::new(Broken(zv))
+        } else {
+            Box::new(zv)
         };
-        let s = ForecastServer::new(
+        ForecastServer::new(
             ServerConfig::default(),
-            Box::new(backend),
+            backend,
             None,
-            "hold",
+            "zero-velocity",
             RobotModel::tiago_dual(),
         )
-        .unwrap();
-        (s, batches)
+        .unwrap()
     }
 
     fn person(id: u32, x: f64, y: f64) -> HumanTrack {
@@ -489,7 +471,7 @@ mod tests {
 
     #[test]
     fn robots_that_advance_together_share_one_forward_pass() {
-        let (mut s, batches) = server(false);
+        let mut s = server(false);
         for k in 0..8 {
             for r in ["r1", "r2", "r3"] {
                 s.on_skeletons(r, &frame(r, k, vec![person(7, 1.5, 0.0)], None))
@@ -502,7 +484,7 @@ mod tests {
         assert_eq!(s.pending(), 3);
         let out = s.run_batch();
         assert_eq!(out.len(), 3);
-        assert_eq!(*batches.lock().unwrap(), vec![3]);
+        assert_eq!(s.counters().batches, 1, "one forward pass for three robots");
         for (r, f) in out {
             let f = f.unwrap();
             assert_eq!(f.header.robot_id, r);
@@ -512,7 +494,7 @@ mod tests {
             );
             assert_eq!(f.human.len(), 23);
             assert_eq!(f.partner_id, 7);
-            // The hold backend repeats the last frame: decoding gives back the partner's joints.
+            // Zero velocity repeats the last frame: decoding gives back the partner's joints.
             let last = person(7, 1.5, 0.0);
             for (p, q) in f.human[22].iter().zip(&last.pose.joints) {
                 for d in 0..3 {
@@ -525,7 +507,7 @@ mod tests {
 
     #[test]
     fn pairs_the_partner_with_a_nearby_person_or_else_the_robot() {
-        let (mut s, _) = server(false);
+        let mut s = server(false);
         s.on_skeletons("r", &frame("r", 0, vec![person(1, 1.5, 0.0)], None))
             .unwrap();
         assert_eq!(s.pairing("r"), Some((1, Other::Robot)));
@@ -546,7 +528,7 @@ mod tests {
 
     #[test]
     fn reordered_frames_are_refused_and_gaps_are_filled() {
-        let (mut s, _) = server(false);
+        let mut s = server(false);
         for k in [0, 1, 2, 5, 6] {
             s.on_skeletons("r", &frame("r", k, vec![person(1, 1.5, 0.0)], None))
                 .unwrap();
@@ -566,7 +548,7 @@ mod tests {
 
     #[test]
     fn a_model_that_returns_garbage_publishes_nothing() {
-        let (mut s, _) = server(true);
+        let mut s = server(true);
         for k in 0..8 {
             s.on_skeletons("r", &frame("r", k, vec![person(1, 1.5, 0.0)], None))
                 .unwrap();

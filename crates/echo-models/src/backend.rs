@@ -87,3 +87,41 @@ impl Backend for CandleBackend {
             .to_vec1::<f32>()?)
     }
 }
+
+/// The zero-velocity forecaster as a backend: every future frame is the last observed one.
+/// A baseline to serve side by side with a model, and a model-free backend for tests.
+pub struct ZeroVelocityBackend {
+    cfg: ForecasterConfig,
+}
+
+impl ZeroVelocityBackend {
+    /// Shaped like `cfg` (observed and predicted frames; reads no text).
+    pub fn new(cfg: ForecasterConfig) -> Self {
+        ZeroVelocityBackend {
+            cfg: ForecasterConfig { text_dim: 0, ..cfg },
+        }
+    }
+}
+
+impl Backend for ZeroVelocityBackend {
+    fn name(&self) -> String {
+        "zero-velocity".into()
+    }
+
+    fn config(&self) -> &ForecasterConfig {
+        &self.cfg
+    }
+
+    fn predict(&mut self, b: usize, obs: &[f32], text: &[f32]) -> anyhow::Result<Vec<f32>> {
+        check_sizes(&self.cfg, b, obs, text)?;
+        let (n, p) = (self.cfg.obs, self.cfg.pred);
+        let mut out = Vec::with_capacity(b * 2 * p * FEATURES);
+        for ia in 0..2 * b {
+            let o = (ia * n + n - 1) * FEATURES;
+            for _ in 0..p {
+                out.extend_from_slice(&obs[o..o + FEATURES]);
+            }
+        }
+        Ok(out)
+    }
+}

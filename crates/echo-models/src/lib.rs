@@ -8,5 +8,5 @@ pub mod optim;
 pub mod predictor;
 pub mod train;
 
-pub use backend::{Backend, CandleBackend};
+pub use backend::{Backend, CandleBackend, ZeroVelocityBackend};
 pub use predictor::{Checkpoint, CheckpointMeta, ModelPredictor};

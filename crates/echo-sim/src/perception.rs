@@ -2,6 +2,7 @@
 
 use echo_motion::scripted::{bystander, demo_partner, ScriptedPerson};
 use echo_motion::skeleton::{j, NUM_JOINTS};
+use echo_motion::synth::{Clip, FPS};
 use echo_msgs::{
     frames, CameraIntrinsics, DetectedPerson, Header, KeypointFormat, KeypointFrame, Keypoints,
 };
@@ -73,26 +74,100 @@ pub const CAMERA: CameraIntrinsics = CameraIntrinsics {
     height: 480,
 };
 
+/// A person the mock estimator watches.
+#[derive(Debug, Clone)]
+pub enum Actor {
+    /// Keyframed behaviour (the demo partner, a bystander).
+    Scripted(ScriptedPerson),
+    /// One person of a recorded or generated interaction, replayed.
+    Recorded(Recorded),
+}
+
+impl Actor {
+    fn duration(&self) -> f64 {
+        match self {
+            Actor::Scripted(p) => p.duration(),
+            Actor::Recorded(r) => r.duration(),
+        }
+    }
+
+    fn joints_at(&self, t: f64) -> [Vector3<f64>; NUM_JOINTS] {
+        match self {
+            Actor::Scripted(p) => p.joints_at(t),
+            Actor::Recorded(r) => r.joints_at(t),
+        }
+    }
+}
+
+/// Joint positions at a fixed rate, already in `base_footprint`; linear in between.
+#[derive(Debug, Clone)]
+pub struct Recorded {
+    fps: f64,
+    frames: Vec<[Vector3<f64>; NUM_JOINTS]>,
+}
+
+impl Recorded {
+    /// Length, seconds.
+    pub fn duration(&self) -> f64 {
+        self.frames.len().saturating_sub(1) as f64 / self.fps
+    }
+
+    /// Joints at `t` seconds (clamped to the recording).
+    pub fn joints_at(&self, t: f64) -> [Vector3<f64>; NUM_JOINTS] {
+        let x = (t * self.fps).clamp(0.0, self.frames.len().saturating_sub(1) as f64);
+        let (i, f) = (x.floor() as usize, x.fract());
+        let a = &self.frames[i];
+        let b = &self.frames[(i + 1).min(self.frames.len() - 1)];
+        std::array::from_fn(|k| a[k].lerp(&b[k], f))
+    }
+}
+
+/// Both people of a generated interaction placed in front of the robot: the midpoint of their
+/// starting pelvises `distance_m` ahead on x, the line between them across the view (along y).
+pub fn clip_actors(clip: &Clip, distance_m: f64) -> Vec<Actor> {
+    let a0 = clip.joints(0, 0)[0];
+    let b0 = clip.joints(0, 1)[0];
+    let mid = (a0 + b0) / 2.0;
+    let axis = b0 - a0;
+    // Rotate the A→B direction onto +y, then move the midpoint to (distance, 0).
+    let yaw = std::f64::consts::FRAC_PI_2 - axis.y.atan2(axis.x);
+    let rot = nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw);
+    let place = |p: Vector3<f64>| {
+        let q = rot * Vector3::new(p.x - mid.x, p.y - mid.y, p.z);
+        Vector3::new(q.x + distance_m, q.y, q.z)
+    };
+    (0..2)
+        .map(|who| {
+            Actor::Recorded(Recorded {
+                fps: FPS,
+                frames: (0..clip.frames.len())
+                    .map(|f| clip.joints(f, who).map(place))
+                    .collect(),
+            })
+        })
+        .collect()
+}
+
 /// A mock estimator watching scripted people.
 #[derive(Debug, Clone)]
 pub struct MockPerception {
     cfg: MockPerceptionConfig,
-    people: Vec<ScriptedPerson>,
+    people: Vec<Actor>,
     rng: rand::rngs::StdRng,
 }
 
 impl MockPerception {
     /// The demo scene: the partner (and a bystander if configured).
     pub fn new(cfg: MockPerceptionConfig) -> Self {
-        let mut people = vec![demo_partner(cfg.partner_height_m)];
+        let mut people = vec![Actor::Scripted(demo_partner(cfg.partner_height_m))];
         if cfg.bystander {
-            people.push(bystander(1.65));
+            people.push(Actor::Scripted(bystander(1.65)));
         }
         Self::with_people(cfg, people)
     }
 
     /// A scene with the given people.
-    pub fn with_people(cfg: MockPerceptionConfig, people: Vec<ScriptedPerson>) -> Self {
+    pub fn with_people(cfg: MockPerceptionConfig, people: Vec<Actor>) -> Self {
         let rng = rand::rngs::StdRng::seed_from_u64(cfg.seed);
         MockPerception { cfg, people, rng }
     }

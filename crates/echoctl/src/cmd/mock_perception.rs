@@ -46,6 +46,26 @@ pub struct Args {
     /// Script start (ns since the UNIX epoch); default: now. Script time = (capture − start).
     #[arg(long)]
     pub t0_ns: Option<u64>,
+    /// Replay both people of a generated interaction instead of the demo partner:
+    /// `<split>:<index>` (e.g. `test:7`, an approach-and-greet of the test split).
+    #[arg(long)]
+    pub clip: Option<String>,
+    /// Distance of the replayed pair's midpoint in front of the robot, m.
+    #[arg(long, default_value_t = 2.8)]
+    pub clip_distance: f64,
+}
+
+/// The generated clip named by `<split>:<index>`.
+pub fn clip_of(spec: &str) -> Result<echo_motion::synth::Clip> {
+    let (split, index) = spec
+        .split_once(':')
+        .ok_or_else(|| anyhow::anyhow!("--clip must be <split>:<index>, not '{spec}'"))?;
+    let split = echo_motion::synth::Split::parse(split)
+        .ok_or_else(|| anyhow::anyhow!("--clip: unknown split '{split}'"))?;
+    let index: u64 = index
+        .parse()
+        .map_err(|_| anyhow::anyhow!("--clip: '{index}' is not a clip index"))?;
+    Ok(echo_motion::synth::generate(&split.clip(index)))
 }
 
 impl Args {
@@ -83,7 +103,13 @@ pub async fn serve(args: Args, mut stop: Shutdown) -> Result<()> {
     let _alive = bus.declare_alive().await?;
     let reporter = bus.spawn_status_reporter(Duration::from_secs(1), stop.clone());
     let model = RobotModel::tiago_dual();
-    let mut mock = MockPerception::new(cfg.clone());
+    let mut mock = match &args.clip {
+        Some(spec) => MockPerception::with_people(
+            cfg.clone(),
+            echo_sim::perception::clip_actors(&clip_of(spec)?, args.clip_distance),
+        ),
+        None => MockPerception::new(cfg.clone()),
+    };
     let t0 = args.t0_ns.unwrap_or_else(now_ns);
     let mut latest: Option<JointState> = None;
     let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / cfg.rate_hz.max(0.1)));

@@ -1,0 +1,284 @@
+//! The forecaster service: wiring and lifecycle around [`echo_forecast::ForecastServer`].
+//!
+//! Inputs, per served robot: `humans` (HumanSkeletons), `robot/state` (JointState), `prompt`
+//! (InteractionIntent). Output: `forecast` (Forecast) per robot; `status/forecaster`.
+//! Robots whose frames arrive within `--batch-window-ms` of each other share one forward pass.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use echo_bus::keys::{self, RobotId};
+use echo_bus::shutdown::Shutdown;
+use echo_bus::{topics, Bus, BusArgs, Received, Stats};
+use echo_forecast::server::Counters;
+use echo_forecast::{ForecastServer, ServerConfig};
+use echo_models::{Backend, CandleBackend, Checkpoint, ZeroVelocityBackend};
+use echo_msgs::{Forecast, HumanSkeletons, InteractionIntent, JointState};
+use echo_robot::RobotModel;
+use futures::{Stream, StreamExt};
+
+/// Service name (liveliness token, status key, logs).
+pub const SERVICE: &str = "forecaster";
+
+/// Command-line / environment configuration of the service.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    /// Network (its `--robot` is served, plus any in `--robots`).
+    #[command(flatten)]
+    pub bus: BusArgs,
+    /// More robots to serve from this process (comma-separated ids).
+    #[arg(long, env = "ECHO_FORECAST_ROBOTS", value_delimiter = ',')]
+    pub robots: Vec<String>,
+    /// Checkpoint stem (<stem>.safetensors + <stem>.json).
+    #[arg(
+        long,
+        env = "ECHO_FORECASTER_MODEL",
+        default_value = "models/forecaster"
+    )]
+    pub model: PathBuf,
+    /// Inference backend: candle, or zero-velocity (the baseline, no model).
+    #[arg(long, env = "ECHO_FORECAST_BACKEND", default_value = "candle")]
+    pub backend: String,
+    /// How long a robot's new frame waits for other robots' frames to share its batch, ms.
+    #[arg(long, default_value_t = 3)]
+    pub batch_window_ms: u64,
+    /// Serving configuration (JSON); defaults when absent.
+    #[arg(long, env = "ECHO_FORECAST_CONFIG")]
+    pub config: Option<PathBuf>,
+    /// Robot description (URDF) for the robot stand-in; the embedded TIAGo++ when absent.
+    #[arg(long, env = "ECHO_URDF")]
+    pub urdf: Option<PathBuf>,
+}
+
+/// One input event, tagged with the robot it belongs to.
+#[derive(Debug)]
+pub enum Input {
+    /// Skeletons of a robot's perception.
+    Skeletons(String, Received<HumanSkeletons>),
+    /// A robot's joint state.
+    JointState(String, Received<JointState>),
+    /// A robot's prompt.
+    Prompt(String, Received<InteractionIntent>),
+}
+
+/// Where forecasts go.
+pub trait Output {
+    /// Publish `msg` for `robot`.
+    fn forecast(
+        &mut self,
+        robot: &str,
+        msg: Forecast,
+    ) -> impl std::future::Future<Output = Result<()>> + Send;
+}
+
+struct BusOutput(Vec<(String, echo_bus::Publisher<Forecast>)>);
+
+impl Output for BusOutput {
+    async fn forecast(&mut self, robot: &str, msg: Forecast) -> Result<()> {
+        match self.0.iter().find(|(r, _)| r == robot) {
+            Some((_, p)) => p.put(msg).await,
+            None => Ok(()),
+        }
+    }
+}
+
+/// Load the backend named by `args` and the sentence encoder its model needs.
+pub fn load_backend(
+    args: &Args,
+) -> Result<(Box<dyn Backend>, Option<echo_text::SentenceEncoder>, String)> {
+    let dev = candle_core::Device::Cpu;
+    let mut ck = Checkpoint::load(&args.model, &dev)
+        .with_context(|| format!("loading the forecaster {}", args.model.display()))?;
+    let text = ck.text.take();
+    let name = args
+        .model
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "forecaster".into());
+    let backend: Box<dyn Backend> = match args.backend.as_str() {
+        "candle" => Box::new(CandleBackend::new(ck, dev)),
+        "zero-velocity" => Box::new(ZeroVelocityBackend::new(ck.meta.model.clone())),
+        other => anyhow::bail!("unknown backend '{other}' (candle, zero-velocity)"),
+    };
+    Ok((backend, text, name))
+}
+
+/// Open the bus, wire inputs and outputs, and run until `stop` triggers.
+pub async fn serve(args: Args, stop: Shutdown) -> Result<()> {
+    let cfg = match &args.config {
+        Some(p) => serde_json::from_slice::<ServerConfig>(
+            &std::fs::read(p).with_context(|| format!("reading {}", p.display()))?,
+        )
+        .with_context(|| format!("parsing {}", p.display()))?,
+        None => ServerConfig::default(),
+    };
+    let robot_model = match &args.urdf {
+        Some(p) => {
+            RobotModel::from_urdf_file(p).with_context(|| format!("loading {}", p.display()))?
+        }
+        None => RobotModel::tiago_dual(),
+    };
+    let (backend, text, model_name) = load_backend(&args)?;
+    let backend_name = backend.name();
+    let server = ForecastServer::new(cfg, backend, text, &model_name, robot_model)?;
+
+    let bus = Bus::open(&args.bus, SERVICE).await?;
+    let mut robots: Vec<RobotId> = vec![bus.robot().clone()];
+    for r in &args.robots {
+        let id = RobotId::new(r).map_err(|e| anyhow::anyhow!("--robots: {e}"))?;
+        if !robots.contains(&id) {
+            robots.push(id);
+        }
+    }
+    let mut streams = vec![];
+    let mut publishers = vec![];
+    let mut tokens = vec![];
+    for r in &robots {
+        let name = r.as_str().to_string();
+        let sk = bus.subscribe(&topics::humans(r)).await?;
+        let js = bus.subscribe(&topics::robot_state(r)).await?;
+        let pr = bus.subscribe(&topics::prompt(r)).await?;
+        let n = name.clone();
+        streams.push(
+            futures::stream::unfold(sk, move |ib| {
+                let n = n.clone();
+                async move { ib.recv().await.map(|m| (Input::Skeletons(n, m), ib)) }
+            })
+            .boxed(),
+        );
+        let n = name.clone();
+        streams.push(
+            futures::stream::unfold(js, move |ib| {
+                let n = n.clone();
+                async move { ib.recv().await.map(|m| (Input::JointState(n, m), ib)) }
+            })
+            .boxed(),
+        );
+        let n = name.clone();
+        streams.push(
+            futures::stream::unfold(pr, move |ib| {
+                let n = n.clone();
+                async move { ib.recv().await.map(|m| (Input::Prompt(n, m), ib)) }
+            })
+            .boxed(),
+        );
+        publishers.push((name, bus.publisher(&topics::forecast(r)).await?));
+        let key = keys::alive(r, SERVICE);
+        tokens.push(
+            bus.session()
+                .liveliness()
+                .declare_token(key.clone())
+                .await
+                .map_err(|e| anyhow::anyhow!("declaring liveliness token {key}: {e}"))?,
+        );
+    }
+    let reporter = bus.spawn_status_reporter(Duration::from_secs(1), stop.clone());
+    let mut stop_inputs = stop.clone();
+    let inputs = futures::stream::select_all(streams)
+        .take_until(Box::pin(async move { stop_inputs.wait().await }));
+    let stats = bus.stats();
+    stats.set_notes(vec![
+        format!("model {model_name} on {backend_name}"),
+        "forecasting the partner (human-human model; the robot plan comes with the HRI model)"
+            .into(),
+        format!(
+            "serving {}",
+            robots
+                .iter()
+                .map(|r| r.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    ]);
+    tracing::info!(robots = robots.len(), model = %model_name, backend = %backend_name, "forecaster running");
+    let mut output = BusOutput(publishers);
+    run(
+        Box::pin(inputs),
+        &mut output,
+        server,
+        &stats,
+        Duration::from_millis(args.batch_window_ms),
+        robots.len(),
+    )
+    .await?;
+    let _ = tokio::time::timeout(Duration::from_secs(2), reporter).await;
+    drop(tokens);
+    bus.close().await?;
+    tracing::info!("forecaster stopped");
+    Ok(())
+}
+
+/// Edge names in counters.
+pub mod edges {
+    /// Skeleton input.
+    pub const HUMANS: &str = "humans";
+    /// Prompt input.
+    pub const PROMPT: &str = "prompt";
+    /// Forecast output (model failures).
+    pub const FORECAST: &str = "forecast";
+}
+
+fn handle(server: &mut ForecastServer, stats: &Stats, input: Input) {
+    match input {
+        Input::Skeletons(r, m) => {
+            if let Err(e) = server.on_skeletons(&r, &m.msg) {
+                stats.rejected(edges::HUMANS, e.reason(), &format!("{r}: {e}"));
+            }
+        }
+        Input::JointState(r, m) => server.on_joint_state(&r, &m.msg),
+        Input::Prompt(r, m) => {
+            if let Err(e) = server.on_prompt(&r, &m.msg) {
+                stats.rejected(edges::PROMPT, e.reason(), &format!("{r}: {e}"));
+            }
+        }
+    }
+}
+
+/// Run over `inputs` until they end. After a frame makes a robot ready, inputs are taken for up
+/// to `window` more (or until all `robots` are ready) so their forecasts share one batch.
+/// Returns the server's counters.
+pub async fn run<S, O>(
+    mut inputs: S,
+    output: &mut O,
+    mut server: ForecastServer,
+    stats: &Stats,
+    window: Duration,
+    robots: usize,
+) -> Result<Counters>
+where
+    S: Stream<Item = Input> + Unpin,
+    O: Output,
+{
+    let mut ended = false;
+    while !ended {
+        let Some(input) = inputs.next().await else {
+            break;
+        };
+        handle(&mut server, stats, input);
+        if server.pending() == 0 {
+            continue;
+        }
+        let deadline = tokio::time::Instant::now() + window;
+        while server.pending() < robots {
+            match tokio::time::timeout_at(deadline, inputs.next()).await {
+                Ok(Some(i)) => handle(&mut server, stats, i),
+                Ok(None) => {
+                    ended = true;
+                    break;
+                }
+                Err(_) => break,
+            }
+        }
+        for (robot, res) in server.run_batch() {
+            match res {
+                Ok(f) => {
+                    stats.latency_ms(f.inference_ms);
+                    output.forecast(&robot, f).await?;
+                }
+                Err(e) => stats.rejected(edges::FORECAST, e.reason(), &format!("{robot}: {e}")),
+            }
+        }
+    }
+    Ok(server.counters())
+}
