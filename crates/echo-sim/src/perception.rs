@@ -78,7 +78,7 @@ pub const CAMERA: CameraIntrinsics = CameraIntrinsics {
 #[derive(Debug, Clone)]
 pub enum Actor {
     /// Keyframed behaviour (the demo partner, a bystander).
-    Scripted(ScriptedPerson),
+    Scripted(Box<ScriptedPerson>),
     /// One person of a recorded or generated interaction, replayed.
     Recorded(Recorded),
 }
@@ -159,9 +159,9 @@ pub struct MockPerception {
 impl MockPerception {
     /// The demo scene: the partner (and a bystander if configured).
     pub fn new(cfg: MockPerceptionConfig) -> Self {
-        let mut people = vec![Actor::Scripted(demo_partner(cfg.partner_height_m))];
+        let mut people = vec![Actor::Scripted(Box::new(demo_partner(cfg.partner_height_m)))];
         if cfg.bystander {
-            people.push(Actor::Scripted(bystander(1.65)));
+            people.push(Actor::Scripted(Box::new(bystander(1.65))));
         }
         Self::with_people(cfg, people)
     }
