@@ -159,7 +159,9 @@ pub struct MockPerception {
 impl MockPerception {
     /// The demo scene: the partner (and a bystander if configured).
     pub fn new(cfg: MockPerceptionConfig) -> Self {
-        let mut people = vec![Actor::Scripted(Box::new(demo_partner(cfg.partner_height_m)))];
+        let mut people = vec![Actor::Scripted(Box::new(demo_partner(
+            cfg.partner_height_m,
+        )))];
         if cfg.bystander {
             people.push(Actor::Scripted(Box::new(bystander(1.65))));
         }
