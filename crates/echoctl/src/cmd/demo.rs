@@ -68,9 +68,127 @@ const SERVICES: &[(&str, Launch)] = &[
 const IN_PROCESS: &[&str] = &[
     "mock-robot",
     "perception-bridge",
+    "forecaster",
     "safety",
     "mock-perception",
 ];
+
+/// Horizon at which the demo scores live forecasts against what the partner then did, frames.
+const SCORE_STEP: usize = 14;
+
+/// A forecast waiting for the partner's frame at its scored horizon.
+struct Pending {
+    due_ns: u64,
+    partner: u32,
+    predicted: Vec<[f64; 3]>,
+    held: Option<Vec<[f64; 3]>>,
+}
+
+/// Live forecast quality: mean joint error at 1.0 s of the model and of holding the pose.
+#[derive(Default)]
+struct ForecastScore {
+    pending: std::collections::VecDeque<Pending>,
+    last_partner: BTreeMap<u64, (u32, Vec<[f64; 3]>)>,
+    model_mm: Vec<f64>,
+    hold_mm: Vec<f64>,
+    inference_ms: Vec<f64>,
+}
+
+fn mean_mm(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    let n = a.len().min(b.len()).max(1) as f64;
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| {
+            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+        })
+        .sum::<f64>()
+        / n
+        * 1e3
+}
+
+fn joints_of(v: &serde_json::Value, id: u64) -> Option<Vec<[f64; 3]>> {
+    let tracks = v.get("tracks")?.as_array()?;
+    let t = tracks
+        .iter()
+        .find(|t| t.get("track_id").and_then(|x| x.as_u64()) == Some(id))?;
+    serde_json::from_value(t.pointer("/pose/joints")?.clone()).ok()
+}
+
+impl ForecastScore {
+    fn on_forecast(&mut self, v: &serde_json::Value) {
+        let (Some(stamp), Some(partner), Some(rate)) = (
+            v.pointer("/header/stamp_ns").and_then(|x| x.as_u64()),
+            v.get("partner_id").and_then(|x| x.as_u64()),
+            v.get("rate_hz").and_then(|x| x.as_f64()),
+        ) else {
+            return;
+        };
+        if let Some(ms) = v.get("inference_ms").and_then(|x| x.as_f64()) {
+            if self.inference_ms.len() < 100_000 {
+                self.inference_ms.push(ms);
+            }
+        }
+        let Some(predicted) = v
+            .pointer(&format!("/human/{SCORE_STEP}"))
+            .and_then(|x| serde_json::from_value::<Vec<[f64; 3]>>(x.clone()).ok())
+        else {
+            return;
+        };
+        let held = self
+            .last_partner
+            .get(&stamp)
+            .filter(|(id, _)| u64::from(*id) == partner)
+            .map(|(_, j)| j.clone());
+        let due_ns = stamp + ((SCORE_STEP + 1) as f64 / rate * 1e9) as u64;
+        if self.pending.len() < 1000 {
+            self.pending.push_back(Pending {
+                due_ns,
+                partner: partner as u32,
+                predicted,
+                held,
+            });
+        }
+    }
+
+    fn on_humans(&mut self, v: &serde_json::Value) {
+        let Some(stamp) = v.pointer("/header/stamp_ns").and_then(|x| x.as_u64()) else {
+            return;
+        };
+        if let Some(pid) = v.get("partner_id").and_then(|x| x.as_u64()) {
+            if let Some(j) = joints_of(v, pid) {
+                self.last_partner.insert(stamp, (pid as u32, j));
+                while self.last_partner.len() > 64 {
+                    self.last_partner.pop_first();
+                }
+            }
+        }
+        // Score forecasts whose horizon is this frame (within half a period).
+        while let Some(p) = self.pending.front() {
+            if p.due_ns > stamp + 33_000_000 {
+                break;
+            }
+            let p = self.pending.pop_front().expect("front exists");
+            if p.due_ns + 33_000_000 < stamp {
+                continue;
+            }
+            if let Some(actual) = joints_of(v, u64::from(p.partner)) {
+                self.model_mm.push(mean_mm(&p.predicted, &actual));
+                if let Some(h) = &p.held {
+                    self.hold_mm.push(mean_mm(h, &actual));
+                }
+            }
+        }
+    }
+
+    fn means(&self) -> Option<(f64, f64, usize)> {
+        if self.model_mm.is_empty() || self.hold_mm.is_empty() {
+            return None;
+        }
+        let m = self.model_mm.iter().sum::<f64>() / self.model_mm.len() as f64;
+        let h = self.hold_mm.iter().sum::<f64>() / self.hold_mm.len() as f64;
+        Some((m, h, self.model_mm.len()))
+    }
+}
 
 #[derive(Default)]
 struct KeyStats {
@@ -86,6 +204,7 @@ struct Observed {
     partner_frames: u64,
     human_frames: u64,
     safety: Option<String>,
+    forecasts: ForecastScore,
 }
 
 enum Running {
@@ -308,6 +427,10 @@ fn start_task(name: &str, net: &BusArgs, args: &Args) -> Result<Running> {
             let a = Wrap::<safety::Args>::try_parse_from(&argv)?.inner;
             tokio::spawn(safety::serve(a, stop))
         }
+        "forecaster" => {
+            let a = Wrap::<forecaster::Args>::try_parse_from(&argv)?.inner;
+            tokio::spawn(forecaster::serve(a, stop))
+        }
         other => anyhow::bail!("{other} cannot run in-process"),
     };
     Ok(Running::Task(trigger, handle))
@@ -374,7 +497,15 @@ async fn subscribe_all(
                     o.safety = Some(st.to_string());
                 }
             }
+            if short == "forecast" {
+                if let Some(v) = &v {
+                    o.forecasts.on_forecast(v);
+                }
+            }
             if short == "humans" {
+                if let Some(v) = &v {
+                    o.forecasts.on_humans(v);
+                }
                 o.human_frames += 1;
                 if v.as_ref()
                     .and_then(|v| v.get("partner_id"))
@@ -420,8 +551,21 @@ fn status_line(t: f64, o: &Observed) -> String {
         .as_ref()
         .map(|s| format!("  safety {s}"))
         .unwrap_or_default();
+    let forecast = if o.keys.contains_key("forecast") {
+        let inf = latency_summary(o.forecasts.inference_ms.iter().copied())
+            .map(|l| format!(" inference {:.1} ms", l.median_ms))
+            .unwrap_or_default();
+        let err = o
+            .forecasts
+            .means()
+            .map(|(m, h, _)| format!(", 1.0 s error {m:.0} mm (hold {h:.0})"))
+            .unwrap_or_default();
+        format!("  forecast {:4.1} Hz{inf}{err}", rate("forecast"))
+    } else {
+        String::new()
+    };
     format!(
-        "t={t:5.1}s  keypoints {:5.1} Hz  humans {:5.1} Hz (partner {:>3})  robot/state {:5.1} Hz{latency}{safety}  rejected {rejected}  dropped {dropped}   ",
+        "t={t:5.1}s  keypoints {:5.1} Hz  humans {:5.1} Hz (partner {:>3})  robot/state {:5.1} Hz{latency}{forecast}{safety}  rejected {rejected}  dropped {dropped}   ",
         rate("perception/raw"),
         rate("humans"),
         o.partner_frames,
@@ -468,8 +612,19 @@ fn summary(o: &Observed, elapsed: f64) -> serde_json::Value {
         );
     }
     let (rejected, dropped) = totals(o);
+    let forecast = o.forecasts.means().map(|(m, h, n)| {
+        let inf = latency_summary(o.forecasts.inference_ms.iter().copied());
+        serde_json::json!({
+            "scored": n,
+            "error_1s_mm": m,
+            "hold_error_1s_mm": h,
+            "inference_median_ms": inf.map(|l| l.median_ms),
+            "inference_p99_ms": inf.map(|l| l.p99_ms),
+        })
+    });
     serde_json::json!({
         "duration_s": elapsed,
+        "forecast": forecast,
         "keys": keys_json,
         "services": services,
         "humans": { "frames": o.human_frames, "partner_frames": o.partner_frames },
@@ -530,6 +685,16 @@ fn render_summary(s: &serde_json::Value) -> String {
                 total(&v["dropped"])
             ));
         }
+    }
+    if let Some(f) = s["forecast"].as_object() {
+        out.push_str(&format!(
+            "forecast: {} scored at 1.0 s, mean joint error {:.0} mm (holding the last pose: {:.0} mm); inference median {:.2} ms p99 {:.2} ms\n",
+            f["scored"],
+            f["error_1s_mm"].as_f64().unwrap_or(0.0),
+            f["hold_error_1s_mm"].as_f64().unwrap_or(0.0),
+            f["inference_median_ms"].as_f64().unwrap_or(0.0),
+            f["inference_p99_ms"].as_f64().unwrap_or(0.0),
+        ));
     }
     if let Some(st) = s["safety_state"].as_str() {
         out.push_str(&format!("safety: final state {st}\n"));
