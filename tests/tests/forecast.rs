@@ -16,6 +16,9 @@ use nalgebra::Vector3;
 const CLIP: &str = "test:7";
 const SETTLE_S: f64 = 1.5;
 
+/// A tracked person in one skeleton frame: track id and joints.
+type Person = (u32, Vec<[f64; 3]>);
+
 fn mean_error(a: &[[f64; 3]], b: &[Vector3<f64>; 22]) -> f64 {
     a.iter()
         .zip(b)
@@ -69,7 +72,7 @@ async fn forecasts_beat_zero_velocity_on_a_scripted_interaction() -> anyhow::Res
         MockPerception::with_people(MockPerceptionConfig::default(), clip_actors(&clip, 2.8));
     let dur = clip.duration();
     // Observed people per stamp (for the zero-velocity forecast from the same input).
-    let mut observed: HashMap<u64, Vec<(u32, Vec<[f64; 3]>)>> = HashMap::new();
+    let mut observed: HashMap<u64, Vec<Person>> = HashMap::new();
     let (mut model_err, mut zv_err, mut n_forecasts, mut latency) = (0.0, 0.0, 0usize, vec![]);
     // Forecasts not compared: [outside the scored part of the loop, no matching input frame].
     let mut skipped = [0usize; 2];

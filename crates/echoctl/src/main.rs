@@ -1,6 +1,7 @@
 //! `echoctl`: Echo's command-line tool.
 //!
 //! Lifecycle: `demo`. Monitoring: `monitor`, `list`. Stand-ins: `mock-perception`, `mock-robot`.
+//! Models and data: `data`, `train`, `eval`, `export`. Measurement: `bench`. Network: `router`.
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -36,6 +37,9 @@ enum Command {
     /// Train a model on generated interactions (forecaster).
     #[command(display_order = 42)]
     Train(cmd::train::Args),
+    /// Export a checkpoint for another runtime (onnx).
+    #[command(display_order = 43)]
+    Export(cmd::export::Args),
     /// Run a Zenoh router (the same engine as zenohd, from this binary).
     #[command(display_order = 50)]
     Router(cmd::router::Args),
@@ -73,6 +77,7 @@ async fn main() -> Result<()> {
         Command::Data(v) => cmd::data::run(v),
         Command::Eval(a) => cmd::eval::run(a),
         Command::Train(a) => cmd::train::run(a),
+        Command::Export(a) => cmd::export::run(a),
         Command::Router(a) => {
             telemetry::init();
             cmd::router::run(a).await

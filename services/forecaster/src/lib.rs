@@ -37,7 +37,8 @@ pub struct Args {
         default_value = "models/forecaster"
     )]
     pub model: PathBuf,
-    /// Inference backend: candle, or zero-velocity (the baseline, no model).
+    /// Inference backend: candle, onnx (the checkpoint exported at start-up and run by ONNX
+    /// Runtime), or zero-velocity (the baseline, no model).
     #[arg(long, env = "ECHO_FORECAST_BACKEND", default_value = "candle")]
     pub backend: String,
     /// How long a robot's new frame waits for other robots' frames to share its batch, ms.
@@ -98,8 +99,19 @@ pub fn load_backend(
         .unwrap_or_else(|| "forecaster".into());
     let backend: Box<dyn Backend> = match args.backend.as_str() {
         "candle" => Box::new(CandleBackend::new(ck, dev)),
+        "onnx" => {
+            use prost::Message;
+            let weights =
+                candle_core::safetensors::load(args.model.with_extension("safetensors"), &dev)?;
+            let model = echo_onnx::export::build(weights, &ck.meta.model)?.encode_to_vec();
+            Box::new(echo_onnx::OrtBackend::from_bytes(
+                &model,
+                ck.meta.model.clone(),
+                0,
+            )?)
+        }
         "zero-velocity" => Box::new(ZeroVelocityBackend::new(ck.meta.model.clone())),
-        other => anyhow::bail!("unknown backend '{other}' (candle, zero-velocity)"),
+        other => anyhow::bail!("unknown backend '{other}' (candle, onnx, zero-velocity)"),
     };
     Ok((backend, text, name))
 }

@@ -2,6 +2,8 @@
 //!
 //! * `bridge`: processing time per keypoint frame of the perception bridge (median, p99).
 //! * `safety`: one safety cycle (17 joints, separation, self-collision, rollout to rest).
+//! * `forecaster`: one forward pass of the shipped forecaster at batch 1 and 16, candle and
+//!   ONNX Runtime (prompt embeddings cached, as in the service).
 //! * `bus`: round trip of a skeleton-sized message between two Zenoh peer sessions over TCP on
 //!   loopback (A publishes, B echoes on another key, A times the return).
 
@@ -19,8 +21,11 @@ use echo_sim::scenario::bridge_inputs;
 /// Options.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
-    /// What to measure: bridge, safety or bus.
+    /// What to measure: bridge, safety, forecaster or bus.
     pub what: String,
+    /// Checkpoint for `forecaster`.
+    #[arg(long, default_value = "models/forecaster")]
+    pub model: std::path::PathBuf,
     /// Samples.
     #[arg(long, default_value_t = 2000)]
     pub samples: usize,
@@ -35,7 +40,8 @@ pub async fn run(args: Args) -> Result<()> {
             safety(args.samples);
             Ok(())
         }
-        other => anyhow::bail!("unknown benchmark '{other}' (bridge, bus, safety)"),
+        "forecaster" => forecaster(&args.model, args.samples),
+        other => anyhow::bail!("unknown benchmark '{other}' (bridge, bus, safety, forecaster)"),
     }
 }
 
@@ -48,6 +54,74 @@ fn report(name: &str, mut v: Vec<f64>) {
         percentile_sorted(&v, 99.0),
         v[v.len() - 1]
     );
+}
+
+fn forecaster(stem: &std::path::Path, samples: usize) -> Result<()> {
+    use echo_models::{Backend, CandleBackend, Checkpoint};
+    use prost::Message;
+    let dev = candle_core::Device::Cpu;
+    let mut ck = Checkpoint::load(stem, &dev)?;
+    let cfg = ck.meta.model.clone();
+    let text = ck.text.take();
+    let weights = candle_core::safetensors::load(stem.with_extension("safetensors"), &dev)?;
+    let onnx = echo_onnx::export::build(weights, &cfg)?.encode_to_vec();
+    let mut backends: Vec<Box<dyn Backend>> = vec![Box::new(CandleBackend::new(ck, dev))];
+    match echo_onnx::OrtBackend::from_bytes(&onnx, cfg.clone(), 0) {
+        Ok(b) => backends.push(Box::new(b)),
+        Err(e) => println!("onnxruntime: not measured ({e})"),
+    }
+    let prompt = "One person extends a handshake with their right hand, while the other reciprocates with their own.";
+    let emb = match &text {
+        Some(e) => {
+            let t = Instant::now();
+            let v = e.embed_one(prompt)?;
+            report(
+                "prompt embedding (MiniLM, first time)",
+                vec![t.elapsed().as_secs_f64() * 1e3],
+            );
+            let t = Instant::now();
+            e.embed_one(prompt)?;
+            report(
+                "prompt embedding (cached)",
+                vec![t.elapsed().as_secs_f64() * 1e3],
+            );
+            v
+        }
+        None => vec![],
+    };
+    // Real windows: observed features of generated test interactions.
+    let clips =
+        echo_motion::synth::generate_split(echo_motion::synth::Split::Test, 0..13, 2, &|| {});
+    let windows: Vec<_> = clips
+        .iter()
+        .flat_map(|c| echo_eval::window::windows(c, 4))
+        .collect();
+    for b in [1usize, 16] {
+        let mut obs = vec![];
+        for w in windows.iter().cycle().take(b) {
+            let (_, agents) = echo_models::features::encode_frames(&w.obs[w.obs.len() - cfg.obs..]);
+            for a in &agents {
+                for f in a {
+                    obs.extend_from_slice(f);
+                }
+            }
+        }
+        let text: Vec<f32> = (0..b).flat_map(|_| emb.iter().copied()).collect();
+        for be in backends.iter_mut() {
+            for _ in 0..10 {
+                be.predict(b, &obs, &text)?;
+            }
+            let n = if b == 1 { samples } else { samples / 4 };
+            let mut v = Vec::with_capacity(n);
+            for _ in 0..n.max(10) {
+                let t = Instant::now();
+                be.predict(b, &obs, &text)?;
+                v.push(t.elapsed().as_secs_f64() * 1e3);
+            }
+            report(&format!("forecaster {} batch {b}", be.name()), v);
+        }
+    }
+    Ok(())
 }
 
 fn bridge(samples: usize) -> Result<()> {

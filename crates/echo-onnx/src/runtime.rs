@@ -1,0 +1,131 @@
+//! The forecaster on ONNX Runtime through `ort`, loading `libonnxruntime` at run time (the
+//! library `scripts/setup` unpacks from the PyPI wheel; on an edge GPU box, a build with the
+//! CUDA or TensorRT execution provider).
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use anyhow::{anyhow, Result};
+use echo_models::backend::check_sizes;
+use echo_models::features::FEATURES;
+use echo_models::model::ForecasterConfig;
+use echo_models::Backend;
+use ort::environment::Environment;
+use ort::session::Session;
+use ort::value::Tensor;
+
+/// File name of the library `scripts/setup` installs.
+pub const DYLIB: &str = "libonnxruntime.so.1.31.1";
+
+/// Where ONNX Runtime is looked for, in order: `$ECHO_ORT_DYLIB`, `$ORT_DYLIB_PATH`,
+/// `$ECHO_CACHE/onnxruntime/`, `.cache/onnxruntime/` in the current directory or a parent, and
+/// the repository's `.cache` this crate was built from.
+pub fn dylib_candidates() -> Vec<PathBuf> {
+    let mut v = vec![];
+    for var in ["ECHO_ORT_DYLIB", "ORT_DYLIB_PATH"] {
+        if let Ok(p) = std::env::var(var) {
+            v.push(PathBuf::from(p));
+        }
+    }
+    if let Ok(p) = std::env::var("ECHO_CACHE") {
+        v.push(Path::new(&p).join("onnxruntime").join(DYLIB));
+    }
+    if let Ok(cwd) = std::env::current_dir() {
+        for d in cwd.ancestors() {
+            v.push(d.join(".cache/onnxruntime").join(DYLIB));
+        }
+    }
+    v.push(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../.cache/onnxruntime")
+            .join(DYLIB),
+    );
+    v
+}
+
+/// The first candidate that exists.
+pub fn locate_dylib() -> Option<PathBuf> {
+    dylib_candidates().into_iter().find(|p| p.is_file())
+}
+
+static ENV: OnceLock<std::result::Result<Environment, String>> = OnceLock::new();
+
+/// The process's ONNX Runtime environment (one per process), created on first use.
+pub fn environment() -> Result<&'static Environment> {
+    ENV.get_or_init(|| {
+        let lib = locate_dylib().ok_or_else(|| {
+            format!(
+                "ONNX Runtime not found (looked for {}); run scripts/setup or set ECHO_ORT_DYLIB",
+                dylib_candidates()
+                    .iter()
+                    .map(|p| p.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        })?;
+        ort::init_from(&lib)
+            .map_err(|e| format!("{}: {e}", lib.display()))?
+            .with_name("echo")
+            .build()
+            .map_err(|e| format!("{}: {e}", lib.display()))
+    })
+    .as_ref()
+    .map_err(|e| anyhow!("{e}"))
+}
+
+/// An exported forecaster in an ONNX Runtime session.
+pub struct OrtBackend {
+    session: Session,
+    cfg: ForecasterConfig,
+}
+
+impl OrtBackend {
+    /// Load `onnx` (exported for `cfg`) with `threads` intra-op threads (0: ONNX Runtime's choice).
+    pub fn load(onnx: &Path, cfg: ForecasterConfig, threads: usize) -> Result<OrtBackend> {
+        let env = environment()?;
+        let mut b = Session::builder(env).map_err(|e| anyhow!("{e}"))?;
+        if threads > 0 {
+            b = b.with_intra_threads(threads).map_err(|e| anyhow!("{e}"))?;
+        }
+        let session = b
+            .commit_from_file(onnx)
+            .map_err(|e| anyhow!("{}: {e}", onnx.display()))?;
+        Ok(OrtBackend { session, cfg })
+    }
+}
+
+impl OrtBackend {
+    /// A session over an ONNX model held in memory (e.g. exported at start-up).
+    pub fn from_bytes(model: &[u8], cfg: ForecasterConfig, threads: usize) -> Result<OrtBackend> {
+        let env = environment()?;
+        let mut b = Session::builder(env).map_err(|e| anyhow!("{e}"))?;
+        if threads > 0 {
+            b = b.with_intra_threads(threads).map_err(|e| anyhow!("{e}"))?;
+        }
+        let session = b.commit_from_memory(model).map_err(|e| anyhow!("{e}"))?;
+        Ok(OrtBackend { session, cfg })
+    }
+}
+
+impl Backend for OrtBackend {
+    fn name(&self) -> String {
+        "onnxruntime-cpu".into()
+    }
+
+    fn config(&self) -> &ForecasterConfig {
+        &self.cfg
+    }
+
+    fn predict(&mut self, b: usize, obs: &[f32], text: &[f32]) -> Result<Vec<f32>> {
+        check_sizes(&self.cfg, b, obs, text)?;
+        let x = Tensor::from_array(([b, 2, self.cfg.obs, FEATURES], obs.to_vec()))?;
+        let outputs = if self.cfg.text_dim > 0 {
+            let t = Tensor::from_array(([b, self.cfg.text_dim], text.to_vec()))?;
+            self.session.run(ort::inputs!["obs" => x, "text" => t])?
+        } else {
+            self.session.run(ort::inputs!["obs" => x])?
+        };
+        let (_, data) = outputs["forecast"].try_extract_tensor::<f32>()?;
+        Ok(data.to_vec())
+    }
+}

@@ -1,0 +1,181 @@
+//! The exported ONNX graph, run by ONNX Runtime, computes what the candle model computes
+//! (within 1e-4) for every architecture variant, and for the shipped checkpoint.
+
+use std::collections::HashMap;
+
+use candle_core::{DType, Device, Tensor};
+use candle_nn::{VarBuilder, VarMap};
+use echo_models::features::FEATURES;
+use echo_models::model::{Forecaster, ForecasterConfig};
+use echo_models::{Backend, CandleBackend, Checkpoint};
+use echo_onnx::export::build;
+use echo_onnx::OrtBackend;
+use prost::Message;
+
+fn runtime_available() -> bool {
+    if echo_onnx::runtime::locate_dylib().is_some() {
+        return true;
+    }
+    // scripts/test (CI) runs scripts/setup first and sets ECHO_REQUIRE_ASSETS=1.
+    assert!(
+        std::env::var("ECHO_REQUIRE_ASSETS").is_err(),
+        "ONNX Runtime not installed: run scripts/setup"
+    );
+    eprintln!("ONNX Runtime not installed: run scripts/setup");
+    false
+}
+
+fn max_diff(a: &[f32], b: &[f32]) -> f32 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
+}
+
+#[test]
+fn every_variant_matches_candle() {
+    if !runtime_available() {
+        return;
+    }
+    let dev = Device::Cpu;
+    let base = ForecasterConfig {
+        d_model: 32,
+        heads: 4,
+        text_dim: 8,
+        ..Default::default()
+    };
+    let variants = [
+        base.clone(),
+        ForecasterConfig {
+            text_dim: 0,
+            ..base.clone()
+        },
+        ForecasterConfig {
+            dct: true,
+            ..base.clone()
+        },
+        ForecasterConfig {
+            interleaved: false,
+            ..base.clone()
+        },
+        ForecasterConfig {
+            displacement: false,
+            ..base.clone()
+        },
+        ForecasterConfig {
+            temp_mlp: 0,
+            ..base.clone()
+        },
+        ForecasterConfig {
+            rounds: 0,
+            ..base.clone()
+        },
+    ];
+    let dir = std::env::temp_dir().join(format!("echo-onnx-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (i, cfg) in variants.iter().enumerate() {
+        let vm = VarMap::new();
+        let model =
+            Forecaster::new(cfg.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev)).unwrap();
+        // Random weights everywhere (the decoders and time mixers start at zero).
+        let mut weights = HashMap::new();
+        for (name, var) in vm.data().lock().unwrap().iter() {
+            let r = Tensor::randn(0f32, 0.3, var.dims(), &dev).unwrap();
+            var.set(&r).unwrap();
+            weights.insert(name.clone(), r);
+        }
+        let path = dir.join(format!("v{i}.onnx"));
+        std::fs::write(&path, build(weights, cfg).unwrap().encode_to_vec()).unwrap();
+        let mut ort = OrtBackend::load(&path, cfg.clone(), 1).unwrap();
+        for b in [1usize, 3] {
+            let obs = Tensor::randn(0f32, 1.0, (b, 2, cfg.obs, FEATURES), &dev).unwrap();
+            let text = Tensor::randn(0f32, 1.0, (b, cfg.text_dim.max(1)), &dev).unwrap();
+            let text = (cfg.text_dim > 0).then_some(text);
+            let want = model
+                .forward(&obs, text.as_ref())
+                .unwrap()
+                .flatten_all()
+                .unwrap()
+                .to_vec1::<f32>()
+                .unwrap();
+            let got = ort
+                .predict(
+                    b,
+                    &obs.flatten_all().unwrap().to_vec1::<f32>().unwrap(),
+                    &text
+                        .map(|t| t.flatten_all().unwrap().to_vec1::<f32>().unwrap())
+                        .unwrap_or_default(),
+                )
+                .unwrap();
+            let d = max_diff(&want, &got);
+            let scale = want.iter().fold(0f32, |m, x| m.max(x.abs()));
+            eprintln!(
+                "variant {i}, batch {b}: max |candle − ort| {d:.2e} (outputs up to {scale:.2})"
+            );
+            assert!(
+                d < 1e-4,
+                "variant {i} ({cfg:?}), batch {b}: max difference {d}"
+            );
+        }
+    }
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn shipped_checkpoint_exports_and_matches() {
+    if !runtime_available() {
+        return;
+    }
+    let stem = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/forecaster");
+    let out = std::env::temp_dir().join(format!("echo-shipped-{}.onnx", std::process::id()));
+    echo_onnx::export_checkpoint(&stem, &out).unwrap();
+    let ck = Checkpoint::load(&stem, &Device::Cpu).unwrap();
+    let cfg = ck.meta.model.clone();
+    let mut ort = OrtBackend::load(&out, cfg.clone(), 0).unwrap();
+    let mut candle = CandleBackend::new(ck, Device::Cpu);
+    let b = 16;
+    let obs = Tensor::randn(0f32, 0.5, b * 2 * cfg.obs * FEATURES, &Device::Cpu)
+        .unwrap()
+        .to_vec1::<f32>()
+        .unwrap();
+    let text = Tensor::randn(0f32, 0.05, b * cfg.text_dim, &Device::Cpu)
+        .unwrap()
+        .to_vec1::<f32>()
+        .unwrap();
+    let d = max_diff(
+        &candle.predict(b, &obs, &text).unwrap(),
+        &ort.predict(b, &obs, &text).unwrap(),
+    );
+    assert!(d < 1e-4, "shipped model: max difference {d}");
+    let _ = std::fs::remove_file(out);
+}
+
+#[test]
+fn wrong_sizes_are_errors() {
+    if !runtime_available() {
+        return;
+    }
+    let cfg = ForecasterConfig {
+        d_model: 16,
+        heads: 2,
+        ..Default::default()
+    };
+    let vm = VarMap::new();
+    let _ = Forecaster::new(
+        cfg.clone(),
+        VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu),
+    );
+    let weights: HashMap<String, Tensor> = vm
+        .data()
+        .lock()
+        .unwrap()
+        .iter()
+        .map(|(k, v)| (k.clone(), v.as_tensor().clone()))
+        .collect();
+    let path = std::env::temp_dir().join(format!("echo-sizes-{}.onnx", std::process::id()));
+    std::fs::write(&path, build(weights, &cfg).unwrap().encode_to_vec()).unwrap();
+    let mut ort = OrtBackend::load(&path, cfg.clone(), 1).unwrap();
+    assert!(ort.predict(2, &[0.0; 10], &[]).is_err());
+    let _ = std::fs::remove_file(path);
+}
