@@ -332,6 +332,21 @@ impl RobotModel {
         Ok(pose)
     }
 
+    /// The joints from the root to `frame`, root first (fixed joints included).
+    pub fn chain(&self, frame: &str) -> Result<Vec<&JointSpec>, RobotError> {
+        let mut link = *self
+            .link_index
+            .get(frame)
+            .ok_or_else(|| RobotError::UnknownFrame(frame.to_string()))?;
+        let mut out = vec![];
+        while let Some(k) = self.link_joint[link] {
+            out.push(&self.joints[k]);
+            link = self.joints[k].parent;
+        }
+        out.reverse();
+        Ok(out)
+    }
+
     /// Poses of every link in the root frame (indexed like [`Self::link_names`]).
     pub fn fk_all(&self, q: &JointValues) -> Vec<Isometry3<f64>> {
         let mut poses = vec![Isometry3::identity(); self.links.len()];

@@ -1,0 +1,3 @@
+//! Human-to-robot retargeting for TIAGo++.
+
+pub mod fk;
