@@ -131,7 +131,8 @@ impl BatchFk {
                         let rot = (eye.unsqueeze(0)?.broadcast_as((b, 3, 3))?
                             + th.sin()?.broadcast_mul(&c(&s.k, (3, 3))?.unsqueeze(0)?)?)?;
                         let rot = (rot
-                            + (1.0 - th.cos()?)?.broadcast_mul(&c(&s.k2, (3, 3))?.unsqueeze(0)?)?)?;
+                            + (1.0 - th.cos()?)?
+                                .broadcast_mul(&c(&s.k2, (3, 3))?.unsqueeze(0)?)?)?;
                         r = r.matmul(&rot)?;
                     }
                     JointKind::Prismatic => {
@@ -160,7 +161,11 @@ mod tests {
         let vars: Vec<String> = ["left", "right"]
             .iter()
             .flat_map(|s| (1..=7).map(move |i| format!("arm_{s}_{i}_joint")))
-            .chain(["torso_lift_joint".to_string(), "head_1_joint".into(), "head_2_joint".into()])
+            .chain([
+                "torso_lift_joint".to_string(),
+                "head_1_joint".into(),
+                "head_2_joint".into(),
+            ])
             .collect();
         let vref: Vec<&str> = vars.iter().map(|s| s.as_str()).collect();
         let frames = [
@@ -187,7 +192,11 @@ mod tests {
         let mut worst = 0f64;
         for i in 0..b {
             let values = model
-                .values_from(vref.iter().enumerate().map(|(k, n)| (*n, qs[i * vars.len() + k] as f64)))
+                .values_from(
+                    vref.iter()
+                        .enumerate()
+                        .map(|(k, n)| (*n, qs[i * vars.len() + k] as f64)),
+                )
                 .unwrap();
             for (fi, f) in frames.iter().enumerate() {
                 let want = model.fk(&values, f).unwrap().translation.vector;
@@ -205,7 +214,13 @@ mod tests {
         let model = RobotModel::tiago_dual();
         let fk = BatchFk::new(&model, &["arm_right_2_joint"], &[], &["arm_right_7_link"]).unwrap();
         let q = candle_core::Var::zeros((1, 1), DType::F32, &Device::Cpu).unwrap();
-        let z = fk.forward(q.as_tensor()).unwrap().narrow(2, 2, 1).unwrap().sum_all().unwrap();
+        let z = fk
+            .forward(q.as_tensor())
+            .unwrap()
+            .narrow(2, 2, 1)
+            .unwrap()
+            .sum_all()
+            .unwrap();
         let g = z.backward().unwrap();
         let dz = g.get(&q).unwrap().to_vec2::<f32>().unwrap()[0][0];
         assert!(dz.abs() > 1e-3, "d(height)/d(shoulder) = {dz}");

@@ -57,8 +57,14 @@ impl Variant {
 /// Options.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
-    /// What to train (forecaster).
+    /// What to train: forecaster or retargeter.
     pub what: String,
+    /// Retargeter: optimiser steps.
+    #[arg(long, default_value_t = 3000)]
+    pub steps: usize,
+    /// Retargeter: weight of the limb-direction (FK) loss; 0 trains with the paper's losses only.
+    #[arg(long, default_value_t = 1.0)]
+    pub w_direction: f64,
     /// Output stem: writes <out>.safetensors, <out>.json, <out>.loss.csv, <out>.loss.png and
     /// the resumable state <out>.resume/.
     #[arg(long, default_value = "models/forecaster")]
@@ -152,11 +158,76 @@ pub fn loss_png(path: &std::path::Path, log: &[EpochLog]) -> Result<()> {
     chart(path, &[Panel { curves: vec![loss] }, Panel { curves: jpe }]).map_err(anyhow::Error::msg)
 }
 
+/// Train the retargeter on generated human poses and robot poses sampled within limits;
+/// evaluate on held-out (test-split) poses; save.
+fn retargeter(args: &Args) -> Result<()> {
+    use echo_motion::synth::Split;
+    use echo_retarget::train::{train as train_r, HumanSet, TrainConfig as RTrain};
+    let out = if args.out == std::path::Path::new("models/forecaster") {
+        PathBuf::from("models/retargeter")
+    } else {
+        args.out.clone()
+    };
+    let t = RTrain {
+        steps: args.steps,
+        w_direction: args.w_direction,
+        seed: args.seed,
+        ..Default::default()
+    };
+    let model = echo_robot::RobotModel::tiago_dual();
+    let humans = HumanSet::from_split(Split::Train, 0..t.clips, 3);
+    let held_out = HumanSet::from_split(Split::Test, 0..130, 5);
+    println!("{} training poses, {} held-out poses", humans.n, held_out.n);
+    let pb = progress(t.steps as u64, "training");
+    let net_cfg = echo_retarget::net::NetConfig::default();
+    let csv_path = out.with_extension("loss.csv");
+    if let Some(d) = csv_path.parent() {
+        std::fs::create_dir_all(d)?;
+    }
+    let mut csv = std::fs::File::create(&csv_path)?;
+    writeln!(csv, "step,total,triplet,recon,latent,direction")?;
+    let (vm, _) = train_r(&net_cfg, &t, &model, &humans, |l| {
+        pb.set_position(l.step as u64);
+        pb.set_message(format!("loss {:.4}", l.total));
+        let _ = writeln!(
+            csv,
+            "{},{:.6},{:.6},{:.6},{:.6},{:.6}",
+            l.step, l.total, l.triplet, l.recon, l.latent, l.direction
+        );
+    })?;
+    pb.finish_and_clear();
+    let vb =
+        candle_nn::VarBuilder::from_varmap(&vm, candle_core::DType::F32, &candle_core::Device::Cpu);
+    let net = echo_retarget::net::ImitationNet::new(net_cfg.clone(), &model, vb)?;
+    let ev = echo_retarget::eval::evaluate(&net, &model, &held_out)?;
+    println!(
+        "held-out limb angle error: mean {:.1}° (L upper {:.1}, L fore {:.1}, R upper {:.1}, R fore {:.1}), median pose {:.1}°, {:.2}% within limits, {:.0} poses/s",
+        ev.mean_deg, ev.limb_deg[0], ev.limb_deg[1], ev.limb_deg[2], ev.limb_deg[3], ev.median_deg,
+        ev.within_limits * 100.0, ev.poses_per_s
+    );
+    let meta = echo_retarget::RetargeterMeta {
+        net: net_cfg,
+        training: t,
+        command: std::env::args().collect::<Vec<_>>().join(" "),
+        evaluation: Some(ev),
+    };
+    echo_retarget::Retargeter::save(&vm, &meta, &out)?;
+    println!(
+        "saved {}.safetensors/.json, loss curve {}",
+        out.display(),
+        csv_path.display()
+    );
+    Ok(())
+}
+
 /// Train and save.
 pub fn run(args: Args) -> Result<()> {
+    if args.what == "retargeter" {
+        return retargeter(&args);
+    }
     anyhow::ensure!(
         args.what == "forecaster",
-        "only 'forecaster' can be trained so far, not '{}'",
+        "'{}' cannot be trained (forecaster, retargeter)",
         args.what
     );
     let dev = candle_core::Device::Cpu;
