@@ -62,6 +62,11 @@ pub fn retarget(robot: &RobotId) -> String {
     format!("{ROOT}/{robot}/retarget")
 }
 
+/// `echo/<robot>/retarget/batch` — queryable: retarget a batch of poses (JSON request/reply).
+pub fn retarget_batch(robot: &RobotId) -> String {
+    format!("{ROOT}/{robot}/retarget/batch")
+}
+
 /// `echo/<robot>/command` — the filtered robot command (RobotCommand); safety service only.
 pub fn command(robot: &RobotId) -> String {
     format!("{ROOT}/{robot}/command")

@@ -7,11 +7,13 @@
 //! - [`fk`]: differentiable batched forward kinematics from the URDF;
 //! - [`train`] and [`eval`]: unpaired training (triplet, reconstruction, latent consistency,
 //!   limb-direction losses) and the limb-angle evaluation;
-//! - [`retargeter`]: the run-time retargeter with the head and torso rules.
+//! - [`retargeter`]: the run-time retargeter with the head and torso rules;
+//! - [`imitation`]: live imitation plans (mirrored partner → robot plan from the measured state).
 
 pub mod eval;
 pub mod fk;
 pub mod human;
+pub mod imitation;
 pub mod net;
 pub mod retargeter;
 pub mod train;
