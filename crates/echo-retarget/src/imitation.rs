@@ -46,6 +46,8 @@ pub struct ImitationConfig {
     pub speed_fraction: f64,
     /// Shortest time to the target, s.
     pub min_time_s: f64,
+    /// Without a partner from the bridge, the nearest person closer than this is imitated, m.
+    pub partner_range_m: f64,
 }
 
 impl Default for ImitationConfig {
@@ -54,6 +56,7 @@ impl Default for ImitationConfig {
             mirror: true,
             speed_fraction: 0.6,
             min_time_s: 0.3,
+            partner_range_m: 4.0,
         }
     }
 }
@@ -123,9 +126,18 @@ impl Imitator {
     /// A plan toward the partner's (mirrored) pose, starting at the measured state.
     pub fn on_skeletons(&mut self, msg: &HumanSkeletons) -> Result<RobotPlan, ImitationError> {
         let state = self.state.as_ref().ok_or(ImitationError::NoState)?;
+        // The bridge's partner; without one, the nearest person within reach of the scene.
+        let dist = |t: &&echo_msgs::HumanTrack| {
+            let r = t.pose.root_position;
+            (r[0] * r[0] + r[1] * r[1]).sqrt()
+        };
         let track = match msg.partner_id {
             Some(id) => msg.tracks.iter().find(|t| t.track_id == id),
-            None => None,
+            None => msg
+                .tracks
+                .iter()
+                .filter(|t| dist(t) < self.cfg.partner_range_m)
+                .min_by(|a, b| dist(a).total_cmp(&dist(b))),
         }
         .ok_or(ImitationError::NoPartner)?;
         let p: [Vector3<f64>; NUM_JOINTS] = std::array::from_fn(|k| {
