@@ -15,7 +15,8 @@ use echo_bus::config::loopback_mesh;
 use echo_bus::shutdown::{self, Shutdown, ShutdownTrigger};
 use echo_bus::stats::latency_summary;
 use echo_bus::{keys, Bus, BusArgs};
-use echo_msgs::now_ns;
+use echo_bus::topics;
+use echo_msgs::{now_ns, ControlMode, Header, Interaction, InteractionIntent};
 
 use super::{mock_perception, mock_robot};
 
@@ -37,6 +38,10 @@ pub struct Args {
     /// Add a bystander to the scene.
     #[arg(long)]
     pub bystander: bool,
+    /// Imitation mode: the robot mirrors the partner through the retargeter (the prompt's
+    /// mode is set to imitation every second).
+    #[arg(long)]
+    pub imitate: bool,
     /// Directory for the services' logs (default: a fresh temporary directory).
     #[arg(long)]
     pub log_dir: Option<PathBuf>,
@@ -69,6 +74,7 @@ const IN_PROCESS: &[&str] = &[
     "mock-robot",
     "perception-bridge",
     "forecaster",
+    "retargeter",
     "safety",
     "mock-perception",
 ];
@@ -293,6 +299,7 @@ pub async fn run(args: Args) -> Result<()> {
     *observed.lock().unwrap_or_else(|e| e.into_inner()) = Observed::default();
     let started = Instant::now();
     let mut stop = shutdown::on_signals();
+    let prompt = bus.publisher(&topics::prompt(&robot)).await?;
     if failure.is_none() {
         let mut tick = tokio::time::interval(Duration::from_millis(500));
         let tty = std::io::stdout().is_terminal();
@@ -313,6 +320,16 @@ pub async fn run(args: Args) -> Result<()> {
                     lost.join(", ")
                 ));
                 break;
+            }
+            if args.imitate && ticks.is_multiple_of(2) {
+                prompt
+                    .put(InteractionIntent {
+                        header: Header::new(robot.as_str(), "", ""),
+                        text: "One person copies the other's arm movements like a mirror.".into(),
+                        interaction: Interaction::Imitation,
+                        mode: ControlMode::Imitation,
+                    })
+                    .await?;
             }
             let line = status_line(
                 started.elapsed().as_secs_f64(),
@@ -430,6 +447,10 @@ fn start_task(name: &str, net: &BusArgs, args: &Args) -> Result<Running> {
         "forecaster" => {
             let a = Wrap::<forecaster::Args>::try_parse_from(&argv)?.inner;
             tokio::spawn(forecaster::serve(a, stop))
+        }
+        "retargeter" => {
+            let a = Wrap::<retargeter::Args>::try_parse_from(&argv)?.inner;
+            tokio::spawn(retargeter::serve(a, stop))
         }
         other => anyhow::bail!("{other} cannot run in-process"),
     };
