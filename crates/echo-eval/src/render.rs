@@ -424,3 +424,47 @@ mod chart_tests {
         let _ = std::fs::remove_file(p);
     }
 }
+
+/// A stick figure: line segments in one colour.
+pub struct Figure {
+    /// Segments (metres, z up).
+    pub segments: Vec<(Vector3<f64>, Vector3<f64>)>,
+    /// Colour.
+    pub rgb: [u8; 3],
+}
+
+/// Panels of stick figures seen from the front (camera on +x looking back, z up), all at one
+/// scale (`px_per_m`), each panel 2.4 m wide and 2.0 m tall, ground at the bottom.
+pub fn front_views(path: &Path, panels: &[Vec<Figure>], px_per_m: f64) -> Result<(), String> {
+    let (pw, ph) = ((2.4 * px_per_m) as u32, (2.0 * px_per_m) as u32);
+    let mut img = RgbImage::from_pixel(pw * panels.len().max(1) as u32, ph, Rgb([255, 255, 255]));
+    for (i, figs) in panels.iter().enumerate() {
+        let ox = i as f64 * pw as f64 + pw as f64 / 2.0;
+        // A slight elevation so depth is readable.
+        let proj = |p: &Vector3<f64>| {
+            (
+                ox - p.y * px_per_m - 0.15 * p.x * px_per_m,
+                ph as f64 - 8.0 - (p.z - 0.1 * p.x) * px_per_m,
+            )
+        };
+        line(
+            &mut img,
+            (i as f64 * pw as f64, ph as f64 - 8.0),
+            ((i + 1) as f64 * pw as f64, ph as f64 - 8.0),
+            Rgb([200, 200, 200]),
+            1,
+        );
+        for f in figs {
+            for (a, b) in &f.segments {
+                line(&mut img, proj(a), proj(b), Rgb(f.rgb), 3);
+            }
+        }
+    }
+    img.save(path)
+        .map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The segments of a 22-joint skeleton.
+pub fn skeleton_segments(p: &[Vector3<f64>; 22]) -> Vec<(Vector3<f64>, Vector3<f64>)> {
+    BONES.iter().map(|(a, b)| (p[*a], p[*b])).collect()
+}

@@ -14,8 +14,8 @@ use anyhow::{anyhow, Context, Result};
 use echo_bus::config::loopback_mesh;
 use echo_bus::shutdown::{self, Shutdown, ShutdownTrigger};
 use echo_bus::stats::latency_summary;
-use echo_bus::{keys, Bus, BusArgs};
 use echo_bus::topics;
+use echo_bus::{keys, Bus, BusArgs};
 use echo_msgs::{now_ns, ControlMode, Header, Interaction, InteractionIntent};
 
 use super::{mock_perception, mock_robot};

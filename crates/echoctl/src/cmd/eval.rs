@@ -32,12 +32,180 @@ pub struct Args {
     /// Write the reports as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Evaluate a retargeter checkpoint instead (limb-direction angles on the split's poses).
+    #[arg(long)]
+    pub retargeter: Option<PathBuf>,
+    /// With --retargeter: also evaluate on the poses of this BVH file.
+    #[arg(long)]
+    pub bvh: Option<PathBuf>,
+    /// BVH joint map: cmu (31-joint CMU skeleton) or echo (Echo's own export).
+    #[arg(long, default_value = "cmu")]
+    pub bvh_map: String,
+    /// BVH units in metres (CMU: 0.0564; Echo's export: 1).
+    #[arg(long, default_value_t = 0.0564)]
+    pub bvh_scale: f64,
+    /// With --retargeter: draw human and retargeted robot side by side (PNG).
+    #[arg(long)]
+    pub render: Option<PathBuf>,
+}
+
+fn retargeter(args: &Args, stem: &std::path::Path, split: Split) -> Result<()> {
+    use echo_retarget::eval::{evaluate_constant, Evaluation};
+    use echo_retarget::train::HumanSet;
+    let model = echo_robot::RobotModel::tiago_dual();
+    let r = echo_retarget::Retargeter::load(stem, model.clone())?;
+    let n = args.clips_per_kind * KINDS.len() as u64;
+    let set = HumanSet::from_split(split, 0..n, 3);
+    let home: Vec<f64> = echo_retarget::net::arm_joints()
+        .iter()
+        .map(|j| {
+            echo_robot::home_pose()
+                .iter()
+                .find(|(k, _)| k == j)
+                .map(|(_, v)| *v)
+                .unwrap_or(0.0)
+        })
+        .collect();
+    let mut rows: Vec<(String, Evaluation)> = vec![
+        (
+            "robot home pose (constant)".into(),
+            evaluate_constant(&model, &set, &home)?,
+        ),
+        (
+            format!("retargeter ({})", stem.display()),
+            echo_retarget::eval::evaluate(r.net(), &model, &set)?,
+        ),
+    ];
+    if let Some(b) = &args.bvh {
+        let map = match args.bvh_map.as_str() {
+            "cmu" => echo_motion::bvh::cmu_map(),
+            "echo" => echo_motion::bvh::echo_map(),
+            other => anyhow::bail!("--bvh-map must be cmu or echo, not '{other}'"),
+        };
+        let bvh = echo_motion::bvh::Bvh::read(b)?;
+        let frames =
+            echo_motion::bvh::to_smpl(&bvh, &map, args.bvh_scale, 15.0, &b.display().to_string())?;
+        let mut bset = HumanSet {
+            features: vec![],
+            directions: vec![],
+            n: 0,
+        };
+        for f in &frames {
+            bset.push(f);
+        }
+        rows.push((
+            format!("retargeter on {}", b.display()),
+            echo_retarget::eval::evaluate(r.net(), &model, &bset)?,
+        ));
+    }
+    println!(
+        "split {} — {} poses (every 3rd frame of both people), limb-direction angle in degrees\n",
+        args.split, set.n
+    );
+    println!("| method | poses | L upper arm | L forearm | R upper arm | R forearm | mean | median pose | within limits | poses/s |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for (name, e) in &rows {
+        println!(
+            "| {name} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} % | {:.0} |",
+            e.poses,
+            e.limb_deg[0],
+            e.limb_deg[1],
+            e.limb_deg[2],
+            e.limb_deg[3],
+            e.mean_deg,
+            e.median_deg,
+            e.within_limits * 100.0,
+            e.poses_per_s
+        );
+    }
+    if let Some(png) = &args.render {
+        render_retarget(&r, &model, split, png)?;
+        println!("\nrendered {}", png.display());
+    }
+    Ok(())
+}
+
+/// Human (blue, in its body frame) and the retargeted robot (orange), front view, for poses of
+/// a wave, a handshake, a handover, the imitation game and a hug.
+fn render_retarget(
+    r: &echo_retarget::Retargeter,
+    model: &echo_robot::RobotModel,
+    split: Split,
+    png: &std::path::Path,
+) -> Result<()> {
+    use echo_eval::render::{front_views, skeleton_segments, Figure};
+    use echo_motion::synth::generate;
+    use nalgebra::Vector3;
+    let mut panels = vec![];
+    // (clip index in the split: types cycle through KINDS, frame as a share of the clip)
+    for (i, at) in [(1u64, 0.55), (0, 0.6), (3, 0.55), (9, 0.5), (4, 0.6)] {
+        let clip = generate(&split.clip(i));
+        let f = ((clip.frames.len() as f64) * at) as usize;
+        let who = if i == 9 { 0 } else { 1 };
+        let p = clip.joints(f.min(clip.frames.len() - 1), who);
+        let Some(rot) = echo_retarget::human::body_frame(&p) else {
+            continue;
+        };
+        let o = Vector3::new(p[0].x, p[0].y, 0.0);
+        let human: [Vector3<f64>; 22] =
+            std::array::from_fn(|k| rot * (p[k] - o) + Vector3::new(0.0, 0.55, 0.0));
+        let Some(pose) = r.retarget(&[p])?.pop().flatten() else {
+            continue;
+        };
+        let q = model.values_from(
+            pose.names
+                .iter()
+                .map(|s| s.as_str())
+                .zip(pose.positions.iter().copied()),
+        )?;
+        let at = |f: &str| -> Result<Vector3<f64>> {
+            Ok(model.fk(&q, f)?.translation.vector + Vector3::new(0.0, -0.55, 0.0))
+        };
+        let mut robot = vec![];
+        for chain in [
+            vec!["base_footprint", "torso_lift_link", "head_2_link"],
+            vec![
+                "torso_lift_link",
+                "arm_left_1_link",
+                "arm_left_3_link",
+                "arm_left_4_link",
+                "arm_left_6_link",
+                "gripper_left_grasping_frame",
+            ],
+            vec![
+                "torso_lift_link",
+                "arm_right_1_link",
+                "arm_right_3_link",
+                "arm_right_4_link",
+                "arm_right_6_link",
+                "gripper_right_grasping_frame",
+            ],
+        ] {
+            for w in chain.windows(2) {
+                robot.push((at(w[0])?, at(w[1])?));
+            }
+        }
+        panels.push(vec![
+            Figure {
+                segments: skeleton_segments(&human),
+                rgb: [30, 90, 200],
+            },
+            Figure {
+                segments: robot,
+                rgb: [220, 110, 20],
+            },
+        ]);
+    }
+    front_views(png, &panels, 110.0).map_err(anyhow::Error::msg)
 }
 
 /// Evaluate and print the table.
 pub fn run(args: Args) -> Result<()> {
     let split = Split::parse(&args.split)
         .ok_or_else(|| anyhow!("--split must be train, val, test or held-out"))?;
+    if let Some(stem) = &args.retargeter {
+        return retargeter(&args, stem, split);
+    }
     let mut predictors: Vec<Box<dyn Predictor>> = match args.baseline.as_str() {
         "zero-velocity" => vec![Box::new(ZeroVelocity)],
         "constant-velocity" => vec![Box::new(ConstantVelocity)],
