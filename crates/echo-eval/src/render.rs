@@ -392,39 +392,6 @@ pub fn chart(path: &Path, panels: &[Panel]) -> Result<(), String> {
         .map_err(|e| format!("{}: {e}", path.display()))
 }
 
-#[cfg(test)]
-mod chart_tests {
-    use super::*;
-
-    #[test]
-    fn chart_draws_each_curve_in_its_colour() {
-        let p = std::env::temp_dir().join(format!("echo-chart-{}.png", std::process::id()));
-        let up = Curve {
-            points: (0..10).map(|i| (i as f64, i as f64)).collect(),
-            rgb: [200, 0, 0],
-        };
-        let down = Curve {
-            points: (0..10).map(|i| (i as f64, 9.0 - i as f64)).collect(),
-            rgb: [0, 0, 200],
-        };
-        chart(
-            &p,
-            &[
-                Panel {
-                    curves: vec![up, down],
-                },
-                Panel { curves: vec![] },
-            ],
-        )
-        .unwrap();
-        let img = image::open(&p).unwrap().to_rgb8();
-        assert_eq!(img.dimensions(), (720, 240));
-        let count = |c: [u8; 3]| img.pixels().filter(|px| px.0 == c).count();
-        assert!(count([200, 0, 0]) > 200 && count([0, 0, 200]) > 200);
-        let _ = std::fs::remove_file(p);
-    }
-}
-
 /// A stick figure: line segments in one colour.
 pub struct Figure {
     /// Segments (metres, z up).
@@ -467,4 +434,37 @@ pub fn front_views(path: &Path, panels: &[Vec<Figure>], px_per_m: f64) -> Result
 /// The segments of a 22-joint skeleton.
 pub fn skeleton_segments(p: &[Vector3<f64>; 22]) -> Vec<(Vector3<f64>, Vector3<f64>)> {
     BONES.iter().map(|(a, b)| (p[*a], p[*b])).collect()
+}
+
+#[cfg(test)]
+mod chart_tests {
+    use super::*;
+
+    #[test]
+    fn chart_draws_each_curve_in_its_colour() {
+        let p = std::env::temp_dir().join(format!("echo-chart-{}.png", std::process::id()));
+        let up = Curve {
+            points: (0..10).map(|i| (i as f64, i as f64)).collect(),
+            rgb: [200, 0, 0],
+        };
+        let down = Curve {
+            points: (0..10).map(|i| (i as f64, 9.0 - i as f64)).collect(),
+            rgb: [0, 0, 200],
+        };
+        chart(
+            &p,
+            &[
+                Panel {
+                    curves: vec![up, down],
+                },
+                Panel { curves: vec![] },
+            ],
+        )
+        .unwrap();
+        let img = image::open(&p).unwrap().to_rgb8();
+        assert_eq!(img.dimensions(), (720, 240));
+        let count = |c: [u8; 3]| img.pixels().filter(|px| px.0 == c).count();
+        assert!(count([200, 0, 0]) > 200 && count([0, 0, 200]) > 200);
+        let _ = std::fs::remove_file(p);
+    }
 }
