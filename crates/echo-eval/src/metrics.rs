@@ -56,7 +56,7 @@ pub fn mpjpe(pred: &[Frame], truth: &[Frame]) -> f64 {
 }
 
 /// Confusion counts of a binary per-frame label.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Confusion {
     /// Predicted and true.
     pub tp: u64,

@@ -8,10 +8,13 @@
 //! - [`train`] and [`eval`]: unpaired training (triplet, reconstruction, latent consistency,
 //!   limb-direction losses) and the limb-angle evaluation;
 //! - [`retargeter`]: the run-time retargeter with the head and torso rules;
+//! - [`hri`]: human–human clips → human–robot clips (B becomes the robot) and their social
+//!   agreement with the original pair;
 //! - [`imitation`]: live imitation plans (mirrored partner → robot plan from the measured state).
 
 pub mod eval;
 pub mod fk;
+pub mod hri;
 pub mod human;
 pub mod imitation;
 pub mod net;

@@ -81,6 +81,75 @@ pub enum Verb {
         #[arg(long)]
         dir: Option<PathBuf>,
     },
+    /// Turn human–human interactions into human–robot ones (person B becomes TIAGo++ through
+    /// the retargeter), report their social agreement with the original pairs, and optionally
+    /// write them.
+    Hri {
+        /// Split to convert.
+        #[arg(long, default_value = "test")]
+        split: String,
+        /// Clips per interaction type.
+        #[arg(long, default_value_t = 10)]
+        clips_per_kind: u64,
+        /// Retargeter checkpoint.
+        #[arg(long, default_value = "models/retargeter")]
+        retargeter: PathBuf,
+        /// Write the HRI dataset here (hri.safetensors + meta.json).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+}
+
+fn hri(
+    split: &str,
+    per_kind: u64,
+    stem: &std::path::Path,
+    out: Option<&std::path::Path>,
+) -> Result<()> {
+    use echo_retarget::hri::{convert, social_scores, write, SocialScores};
+    let split = Split::parse(split)
+        .ok_or_else(|| anyhow!("--split must be train, val, test or held-out"))?;
+    let model = echo_robot::RobotModel::tiago_dual();
+    let body = echo_robot::collision::RobotBody::tiago(&model)?;
+    let r = echo_retarget::Retargeter::load(stem, model.clone())?;
+    let n = per_kind * echo_motion::synth::KINDS.len() as u64;
+    let pb = progress(n, "converting");
+    let clips = generate_split(split, 0..n, 2, &|| {});
+    let mut by_kind: std::collections::BTreeMap<String, SocialScores> = Default::default();
+    let mut all = vec![];
+    for c in &clips {
+        let h = convert(c, &r)?;
+        let s = social_scores(&h, &r, &model, &body, 3)?;
+        let e = by_kind.entry(h.kind.clone()).or_default();
+        for (a, b) in [(&mut e.contact, s.contact), (&mut e.proximity, s.proximity)] {
+            a.tp += b.tp;
+            a.fp += b.fp;
+            a.fn_ += b.fn_;
+            a.tn += b.tn;
+        }
+        e.hand_error_m += s.hand_error_m * s.frames as f64;
+        e.frames += s.frames;
+        all.push(h);
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    println!("| type | frames | F1 contact | F1 proximity | gripper–reference wrist m |");
+    println!("|---|---|---|---|---|");
+    let f = |x: Option<f64>| x.map(|v| format!("{v:.2}")).unwrap_or_else(|| "–".into());
+    for (k, s) in &by_kind {
+        println!(
+            "| {k} | {} | {} | {} | {:.3} |",
+            s.frames,
+            f(s.contact.f1()),
+            f(s.proximity.f1()),
+            s.hand_error_m / s.frames.max(1) as f64
+        );
+    }
+    if let Some(dir) = out {
+        write(dir, &all, &r, &stem.display().to_string())?;
+        println!("wrote {} clips to {}", all.len(), dir.display());
+    }
+    Ok(())
 }
 
 /// A progress bar with rate and ETA.
@@ -98,6 +167,12 @@ pub fn progress(n: u64, what: &str) -> ProgressBar {
 /// Run a data verb.
 pub fn run(verb: Verb) -> Result<()> {
     match verb {
+        Verb::Hri {
+            split,
+            clips_per_kind,
+            retargeter,
+            out,
+        } => hri(&split, clips_per_kind, &retargeter, out.as_deref()),
         Verb::Gen {
             split,
             clips,
