@@ -75,6 +75,9 @@ pub struct Args {
     /// Continue an interrupted run from <out>.resume/.
     #[arg(long)]
     pub resume: bool,
+    /// Only redraw <out>.loss.png from <out>.loss.csv.
+    #[arg(long)]
+    pub replot: bool,
     /// Training clips.
     #[arg(long, default_value_t = 2600)]
     pub train_clips: u64,
@@ -230,6 +233,28 @@ pub fn run(args: Args) -> Result<()> {
         "'{}' cannot be trained (forecaster, retargeter)",
         args.what
     );
+    if args.replot {
+        let csv = args.out.with_extension("loss.csv");
+        let text = std::fs::read_to_string(&csv)?;
+        let log: Vec<EpochLog> = text
+            .lines()
+            .skip(1)
+            .filter_map(|l| {
+                let v: Vec<f64> = l.split(',').filter_map(|x| x.parse().ok()).collect();
+                (v.len() == 7).then(|| EpochLog {
+                    epoch: v[0] as usize,
+                    train_loss: v[1],
+                    val_jpe: v[2..6].to_vec(),
+                    elapsed_s: v[6],
+                })
+            })
+            .collect();
+        anyhow::ensure!(!log.is_empty(), "{}: no epochs", csv.display());
+        let png = args.out.with_extension("loss.png");
+        loss_png(&png, &log)?;
+        println!("wrote {}", png.display());
+        return Ok(());
+    }
     let dev = candle_core::Device::Cpu;
     let mut model = ForecasterConfig {
         d_model: args.d_model,
