@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{anyhow, Result};
 use clap::Subcommand;
+use echo_eval::Predictor;
 use echo_motion::sensors::contact_and_proximity;
 use echo_motion::skeleton::{j, NUM_JOINTS, PARENTS};
 use echo_motion::synth::{generate_split, Clip, Split, FPS};
@@ -46,7 +47,8 @@ pub enum Verb {
         /// One image with this many frames side by side.
         #[arg(long)]
         strip: Option<usize>,
-        /// Overlay a predictor's forecast (zero-velocity or constant-velocity) for the window
+        /// Overlay a forecast (zero-velocity, constant-velocity, or a forecaster checkpoint stem
+        /// such as models/forecaster) for the window
         /// starting at --at.
         #[arg(long)]
         predict: Option<String>,
@@ -391,12 +393,19 @@ fn render(
             let w = w
                 .get(at)
                 .ok_or_else(|| anyhow!("--at {at}: the clip has {} windows", w.len()))?;
-            let mut p: Box<dyn echo_eval::Predictor> = match name {
-                "zero-velocity" => Box::new(echo_eval::window::ZeroVelocity),
-                "constant-velocity" => Box::new(echo_eval::window::ConstantVelocity),
-                other => anyhow::bail!("unknown predictor '{other}'"),
+            let forecast = match name {
+                "zero-velocity" => echo_eval::window::ZeroVelocity.predict(&[w]).remove(0),
+                "constant-velocity" => echo_eval::window::ConstantVelocity.predict(&[w]).remove(0),
+                // Any other name is a forecaster checkpoint stem.
+                stem => {
+                    let ck = echo_models::Checkpoint::load(
+                        std::path::Path::new(stem),
+                        &candle_core::Device::Cpu,
+                    )
+                    .map_err(|e| anyhow!("--predict {stem}: not a baseline, and {e}"))?;
+                    ck.predictor("forecaster").predict(&[w]).remove(0)
+                }
             };
-            let forecast = p.predict(&[w]).remove(0);
             let mut truth = w.obs.clone();
             truth.extend(w.future.clone());
             let mut pr = w.obs.clone();
