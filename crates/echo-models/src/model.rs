@@ -45,6 +45,9 @@ pub struct ForecasterConfig {
     /// "w/o Iterative Refinement" ablation — all rounds refine A by B's self-intent, then all
     /// rounds refine B by the final A).
     pub interleaved: bool,
+    /// Values per frame of agent A and agent B: 73 for a person (see [`crate::features`]);
+    /// a robot agent has its own size (joint angles + base).
+    pub agent_features: [usize; 2],
 }
 
 impl Default for ForecasterConfig {
@@ -61,6 +64,7 @@ impl Default for ForecasterConfig {
             displacement: true,
             dct: false,
             interleaved: true,
+            agent_features: [FEATURES, FEATURES],
         }
     }
 }
@@ -252,8 +256,8 @@ impl Forecaster {
         let t = cfg.frames() + usize::from(cfg.text_dim > 0);
         Ok(Forecaster {
             embed: [
-                Mlp::new(FEATURES, d, d, vb.pp("embed_a"))?,
-                Mlp::new(FEATURES, d, d, vb.pp("embed_b"))?,
+                Mlp::new(cfg.agent_features[0], d, d, vb.pp("embed_a"))?,
+                Mlp::new(cfg.agent_features[1], d, d, vb.pp("embed_b"))?,
             ],
             text: if cfg.text_dim > 0 {
                 Some(linear(cfg.text_dim, d, vb.pp("text"))?)
@@ -276,13 +280,13 @@ impl Forecaster {
                 .collect::<Result<_>>()?,
             decode: if cfg.displacement {
                 [
-                    Mlp::zero_out(d, d, FEATURES, vb.pp("decode_a"))?,
-                    Mlp::zero_out(d, d, FEATURES, vb.pp("decode_b"))?,
+                    Mlp::zero_out(d, d, cfg.agent_features[0], vb.pp("decode_a"))?,
+                    Mlp::zero_out(d, d, cfg.agent_features[1], vb.pp("decode_b"))?,
                 ]
             } else {
                 [
-                    Mlp::new(d, d, FEATURES, vb.pp("decode_a"))?,
-                    Mlp::new(d, d, FEATURES, vb.pp("decode_b"))?,
+                    Mlp::new(d, d, cfg.agent_features[0], vb.pp("decode_a"))?,
+                    Mlp::new(d, d, cfg.agent_features[1], vb.pp("decode_b"))?,
                 ]
             },
             pe: sinusoidal(cfg.frames(), d, vb.device())?,
@@ -307,15 +311,46 @@ impl Forecaster {
     }
 
     /// The social forecast and the individual one (the self-intent features before any
-    /// cross-attention, through the same decoder: what L_self supervises).
+    /// cross-attention, through the same decoder: what L_self supervises); both agents of the
+    /// same size, stacked as (b, 2, pred, F).
     pub fn forward_both(&self, obs: &Tensor, text: Option<&Tensor>) -> Result<(Tensor, Tensor)> {
-        let (b, _, n_obs, f) = obs.dims4()?;
-        if n_obs != self.cfg.obs || f != FEATURES {
+        let (_, agents, n_obs, f) = obs.dims4()?;
+        if agents != 2 || n_obs != self.cfg.obs || self.cfg.agent_features != [f, f] {
             candle_core::bail!(
-                "observed features must be (b, 2, {}, {FEATURES}), got {:?}",
+                "observed features must be (b, 2, {}, {:?}), got {:?}",
                 self.cfg.obs,
+                self.cfg.agent_features,
                 obs.dims()
             );
+        }
+        let xa = obs.narrow(1, 0, 1)?.squeeze(1)?;
+        let xb = obs.narrow(1, 1, 1)?.squeeze(1)?;
+        let ([sa, sb], [ia, ib]) = self.forward_pair(&xa, &xb, text)?;
+        Ok((
+            Tensor::stack(&[sa, sb], 1)?,
+            Tensor::stack(&[ia, ib], 1)?,
+        ))
+    }
+
+    /// Agents of any sizes: `xa` (b, obs, F_a), `xb` (b, obs, F_b) → social `[a, b]` and
+    /// individual `[a, b]` forecasts, (b, pred, F_i) each.
+    pub fn forward_pair(
+        &self,
+        xa: &Tensor,
+        xb: &Tensor,
+        text: Option<&Tensor>,
+    ) -> Result<([Tensor; 2], [Tensor; 2])> {
+        let (b, n_obs, _) = xa.dims3()?;
+        for (i, x) in [xa, xb].iter().enumerate() {
+            let (bi, ni, fi) = x.dims3()?;
+            if bi != b || ni != self.cfg.obs || fi != self.cfg.agent_features[i] {
+                candle_core::bail!(
+                    "agent {i}: observed features must be (b, {}, {}), got {:?}",
+                    self.cfg.obs,
+                    self.cfg.agent_features[i],
+                    x.dims()
+                );
+            }
         }
         let text = match (&self.text, text) {
             (Some(p), Some(t)) => Some(p.forward(t)?.unsqueeze(1)?), // (b, 1, d)
@@ -325,12 +360,12 @@ impl Forecaster {
         let t = self.cfg.frames();
         let mut agents = Vec::with_capacity(2);
         let mut lasts = Vec::with_capacity(2);
-        for a in 0..2 {
-            let x = obs.narrow(1, a, 1)?.squeeze(1)?; // (b, obs, f)
+        for (a, x) in [xa, xb].iter().enumerate() {
+            let f = x.dim(2)?;
             let last = x.narrow(1, n_obs - 1, 1)?; // (b, 1, f)
             let mut padded = Tensor::cat(
                 &[
-                    x.clone(),
+                    (*x).clone(),
                     last.broadcast_as((b, t - n_obs, f))?.contiguous()?,
                 ],
                 1,
@@ -375,16 +410,16 @@ impl Forecaster {
                     .narrow(1, n_obs, self.cfg.pred)?,
                 None => self.decode[a].forward(&h.narrow(1, skip + n_obs, self.cfg.pred)?)?,
             };
-            let y = if self.cfg.displacement {
-                y.broadcast_add(&lasts[a])?
+            if self.cfg.displacement {
+                y.broadcast_add(&lasts[a])
             } else {
-                y
-            };
-            y.unsqueeze(1)
+                Ok(y)
+            }
         };
-        let social = Tensor::cat(&[decode(0, &ha)?, decode(1, &hb)?], 1)?;
-        let individual = Tensor::cat(&[decode(0, &agents[0])?, decode(1, &agents[1])?], 1)?;
-        Ok((social, individual))
+        Ok((
+            [decode(0, &ha)?, decode(1, &hb)?],
+            [decode(0, &agents[0])?, decode(1, &agents[1])?],
+        ))
     }
 }
 

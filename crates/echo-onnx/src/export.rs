@@ -241,6 +241,11 @@ impl Graph {
 
 /// The ONNX model of a checkpoint: weights by name and the architecture.
 pub fn build(weights: HashMap<String, Tensor>, cfg: &ForecasterConfig) -> Result<ModelProto> {
+    anyhow::ensure!(
+        cfg.agent_features == [FEATURES, FEATURES],
+        "ONNX export covers two-person models (agent features {:?})",
+        cfg.agent_features
+    );
     let mut g = Graph {
         weights,
         nodes: vec![],
