@@ -29,6 +29,16 @@ impl Canonical {
         }
     }
 
+    /// Heading of the window frame in the world (yaw about z), radians.
+    pub fn yaw(self) -> f64 {
+        self.rot.inverse().euler_angles().2
+    }
+
+    /// A window-frame point in the world.
+    pub fn window_to_world(self, p: &Vector3<f64>) -> Vector3<f64> {
+        self.to_world(p)
+    }
+
     /// A world point in the window frame.
     pub fn world_to_window(self, p: &Vector3<f64>) -> Vector3<f64> {
         self.to_local(p)

@@ -326,10 +326,7 @@ impl Forecaster {
         let xa = obs.narrow(1, 0, 1)?.squeeze(1)?;
         let xb = obs.narrow(1, 1, 1)?.squeeze(1)?;
         let ([sa, sb], [ia, ib]) = self.forward_pair(&xa, &xb, text)?;
-        Ok((
-            Tensor::stack(&[sa, sb], 1)?,
-            Tensor::stack(&[ia, ib], 1)?,
-        ))
+        Ok((Tensor::stack(&[sa, sb], 1)?, Tensor::stack(&[ia, ib], 1)?))
     }
 
     /// Agents of any sizes: `xa` (b, obs, F_a), `xb` (b, obs, F_b) → social `[a, b]` and
@@ -459,14 +456,17 @@ pub fn joint_positions(x: &Tensor) -> Result<Tensor> {
     shape.push(3);
     let local = x.narrow(D::Minus1, 0, o)?.reshape(shape.as_slice())?;
     let root = x.narrow(D::Minus1, o, 3)?.unsqueeze(last)?;
-    let q = x.narrow(D::Minus1, o + 3, 4)?;
+    let q = x.narrow(D::Minus1, o + 3, 4)?.unsqueeze(last)?;
+    rotate(&q, &local)?.broadcast_add(&root)
+}
+
+/// Rotate vectors `v` (…, 3) by quaternions `q` (…, 4, `[x, y, z, w]`, normalised here;
+/// broadcast over the leading dimensions): `v + w t + u × t`, `t = 2 u × v`.
+pub fn rotate(q: &Tensor, v: &Tensor) -> Result<Tensor> {
     let q = q.broadcast_div(&(q.sqr()?.sum_keepdim(D::Minus1)?.sqrt()? + 1e-6)?)?;
-    let q = q.unsqueeze(last)?;
     let (u, w) = (q.narrow(D::Minus1, 0, 3)?, q.narrow(D::Minus1, 3, 1)?);
-    // v' = v + w t + u × t, t = 2 u × v
-    let t = (cross(&u, &local)? * 2.0)?;
-    let rotated = ((&local + t.broadcast_mul(&w)?)? + cross(&u, &t)?)?;
-    rotated.broadcast_add(&root)
+    let t = (cross(&u, v)? * 2.0)?;
+    (v + t.broadcast_mul(&w)?)? + cross(&u, &t)?
 }
 
 /// Interaction loss (paper Eq. 3): MSE between the predicted and true distance matrices of

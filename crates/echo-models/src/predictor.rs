@@ -112,6 +112,9 @@ pub struct CheckpointMeta {
     pub text_encoder: String,
     /// Feature layout.
     pub features: String,
+    /// Settings of a human–robot (HRI) training, when the model has a robot agent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hri_training: Option<serde_json::Value>,
 }
 
 /// A loaded checkpoint.

@@ -47,6 +47,63 @@ pub struct Args {
     /// With --retargeter: draw human and retargeted robot side by side (PNG).
     #[arg(long)]
     pub render: Option<PathBuf>,
+    /// Evaluate human–robot (HRI) forecaster checkpoints (repeatable) on the split's
+    /// interactions with person B retargeted onto the robot (the paper's Table 4).
+    #[arg(long)]
+    pub hri: Vec<PathBuf>,
+    /// Retargeter for --hri.
+    #[arg(long, default_value = "models/retargeter")]
+    pub with_retargeter: PathBuf,
+}
+
+fn hri(args: &Args, split: Split) -> Result<()> {
+    use echo_hri::eval::{evaluate as score, markdown, model_forecasts, reference, zero_velocity};
+    let model = echo_robot::RobotModel::tiago_dual();
+    let body = echo_robot::collision::RobotBody::tiago(&model)?;
+    let r = echo_retarget::Retargeter::load(&args.with_retargeter, model.clone())?;
+    let n = args.clips_per_kind * KINDS.len() as u64;
+    let ws = super::train::hri_windows(split, n, args.stride, &r)?;
+    let refs: Vec<&echo_hri::data::HriWindow> = ws.iter().collect();
+    let mut reports = vec![
+        score(
+            "retargeted reference",
+            &refs,
+            &reference(&refs),
+            &r,
+            &model,
+            &body,
+        )?,
+        score(
+            "zero-velocity",
+            &refs,
+            &zero_velocity(&refs),
+            &r,
+            &model,
+            &body,
+        )?,
+    ];
+    for stem in &args.hri {
+        let ck = echo_models::Checkpoint::load(stem, &candle_core::Device::Cpu)?;
+        let mut fc = vec![];
+        for chunk in refs.chunks(64) {
+            fc.extend(model_forecasts(&ck.model, ck.text.as_ref(), chunk)?);
+        }
+        let name = stem
+            .file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        reports.push(score(&name, &refs, &fc, &r, &model, &body)?);
+    }
+    println!(
+        "split {} — {} HRI windows (observe 0.53 s, predict 1.0 s at 15 Hz); robot errors in mm against the retargeted reference, F1 against the original human pair\n",
+        args.split,
+        ws.len()
+    );
+    println!("{}", markdown(&reports));
+    if let Some(p) = &args.json {
+        std::fs::write(p, serde_json::to_vec_pretty(&reports)?)?;
+    }
+    Ok(())
 }
 
 fn retargeter(args: &Args, stem: &std::path::Path, split: Split) -> Result<()> {
@@ -205,6 +262,9 @@ pub fn run(args: Args) -> Result<()> {
         .ok_or_else(|| anyhow!("--split must be train, val, test or held-out"))?;
     if let Some(stem) = &args.retargeter {
         return retargeter(&args, stem, split);
+    }
+    if !args.hri.is_empty() {
+        return hri(&args, split);
     }
     let mut predictors: Vec<Box<dyn Predictor>> = match args.baseline.as_str() {
         "zero-velocity" => vec![Box::new(ZeroVelocity)],

@@ -59,6 +59,12 @@ impl Variant {
 pub struct Args {
     /// What to train: forecaster or retargeter.
     pub what: String,
+    /// HRI: how the interaction and imitation losses enter (none, fixed, adaptive).
+    #[arg(long, default_value = "adaptive")]
+    pub social: String,
+    /// HRI: retargeter checkpoint that turns person B into the robot.
+    #[arg(long, default_value = "models/retargeter")]
+    pub retargeter: PathBuf,
     /// Retargeter: optimiser steps.
     #[arg(long, default_value_t = 3000)]
     pub steps: usize,
@@ -223,14 +229,95 @@ fn retargeter(args: &Args) -> Result<()> {
     Ok(())
 }
 
+/// HRI windows of `n` clips of a split, B retargeted onto the robot.
+pub fn hri_windows(
+    split: echo_motion::synth::Split,
+    n: u64,
+    stride: usize,
+    r: &echo_retarget::Retargeter,
+) -> Result<Vec<echo_hri::data::HriWindow>> {
+    let clips = echo_motion::synth::generate_split(split, 0..n, 2, &|| {});
+    let mut out = vec![];
+    for c in &clips {
+        let h = echo_retarget::hri::convert(c, r)?;
+        out.extend(echo_hri::data::windows(&h, stride));
+    }
+    Ok(out)
+}
+
+/// Train the human–robot forecaster, evaluate it on test windows, save.
+fn hri(args: &Args) -> Result<()> {
+    use echo_hri::train::{
+        gripper_fk, hri_model_config, train as train_hri, HriTrainConfig, Social,
+    };
+    let social = match args.social.as_str() {
+        "none" => Social::None,
+        "fixed" => Social::Fixed,
+        "adaptive" => Social::Adaptive,
+        other => anyhow::bail!("--social must be none, fixed or adaptive, not '{other}'"),
+    };
+    let out = if args.out == std::path::Path::new("models/forecaster") {
+        PathBuf::from("models/hri")
+    } else {
+        args.out.clone()
+    };
+    let model = echo_robot::RobotModel::tiago_dual();
+    let r = echo_retarget::Retargeter::load(&args.retargeter, model.clone())?;
+    let t = HriTrainConfig {
+        clips: args.train_clips,
+        epochs: args.epochs,
+        max_minutes: args.max_minutes,
+        social,
+        seed: args.seed,
+        ..Default::default()
+    };
+    let dev = candle_core::Device::Cpu;
+    let text = SentenceEncoder::load_default(&dev)?;
+    let cfg = hri_model_config(text.dim());
+    let windows = hri_windows(echo_motion::synth::Split::Train, t.clips, t.stride, &r)?;
+    println!(
+        "{} HRI training windows from {} clips",
+        windows.len(),
+        t.clips
+    );
+    let fk = gripper_fk(&model, &r)?;
+    let pb = progress(0, "training");
+    let (vm, log) = train_hri(&cfg, &t, &windows, Some(&text), &fk, |k, n, l| {
+        pb.set_length(n as u64);
+        pb.set_position(k as u64);
+        pb.set_message(format!("loss {:.4}", l.total));
+    })?;
+    pb.finish_and_clear();
+    for (e, l) in log.iter().enumerate() {
+        println!(
+            "epoch {e}: total {:.4} self {:.4} soc {:.4} int {:.4} imit {:.4}",
+            l.total, l.self_, l.soc, l.int, l.imit
+        );
+    }
+    let meta = CheckpointMeta {
+        model: cfg,
+        training: TrainConfig::default(),
+        command: std::env::args().collect::<Vec<_>>().join(" "),
+        text_encoder: text.id().to_string(),
+        features: "agent A (human): 22 pelvis-relative joints in the heading frame, pelvis xyz, heading quaternion (73); agent B (robot): 14 arm joints, torso, head pan and tilt, base xyz, heading quaternion (24); window frame at the human's last observed pelvis and heading".into(),
+        hri_training: Some(serde_json::to_value(&t)?),
+    };
+    Checkpoint::save(&vm, &meta, &out)?;
+    println!("saved {}.safetensors/.json", out.display());
+    Ok(())
+}
+
 /// Train and save.
 pub fn run(args: Args) -> Result<()> {
     if args.what == "retargeter" {
         return retargeter(&args);
     }
+    if args.what == "hri" {
+        return hri(&args);
+    }
     anyhow::ensure!(
         args.what == "forecaster",
-        "'{}' cannot be trained (forecaster, retargeter)",
+        "'{}' cannot be trained (forecaster, retargeter, hri)",
         args.what
     );
     if args.replot {
@@ -313,6 +400,7 @@ pub fn run(args: Args) -> Result<()> {
             .map(|e| e.id().to_string())
             .unwrap_or_else(|| "none".into()),
         features: "per agent and frame: 22 joints relative to the pelvis in the heading frame (66), pelvis xyz (3), heading quaternion xyzw (4); window frame at A's last observed pelvis and heading".into(),
+        hri_training: None,
     };
     Checkpoint::save(&varmap, &meta, &args.out)?;
     let png = args.out.with_extension("loss.png");
