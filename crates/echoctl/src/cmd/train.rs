@@ -102,6 +102,20 @@ pub struct Args {
     /// Seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Forecaster: device, cpu or cuda (needs echoctl built with `--features cuda`).
+    #[arg(long, default_value = "cpu")]
+    pub device: String,
+}
+
+/// The device named by `--device`.
+pub fn device(name: &str) -> Result<candle_core::Device> {
+    match name {
+        "cpu" => Ok(candle_core::Device::Cpu),
+        "cuda" => Ok(candle_core::Device::new_cuda(0).map_err(|e| {
+            anyhow::anyhow!("CUDA device 0: {e} (build echoctl with --features cuda)")
+        })?),
+        other => anyhow::bail!("--device must be cpu or cuda, not '{other}'"),
+    }
 }
 
 struct Bar {
@@ -342,7 +356,7 @@ pub fn run(args: Args) -> Result<()> {
         println!("wrote {}", png.display());
         return Ok(());
     }
-    let dev = candle_core::Device::Cpu;
+    let dev = device(&args.device)?;
     let mut model = ForecasterConfig {
         d_model: args.d_model,
         rounds: args.rounds,
