@@ -8,6 +8,18 @@ use nalgebra::Vector3;
 /// Both agents' joints at one instant: `[A, B]`.
 pub type Pair = [[Vector3<f64>; NUM_JOINTS]; 2];
 
+/// Joint values of the robot kept with each frame (for models whose second agent is the robot).
+pub const ROBOT_STATE: usize = 17;
+
+/// One instant: both agents' joints and the robot's joint values.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Frame {
+    /// Joints of A and B.
+    pub pair: Pair,
+    /// The robot's joint values.
+    pub robot: [f64; ROBOT_STATE],
+}
+
 /// Why a frame was not taken.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum HistoryError {
@@ -53,7 +65,7 @@ pub struct History {
     period_ns: u64,
     capacity: usize,
     max_fill: usize,
-    frames: VecDeque<Pair>,
+    frames: VecDeque<Frame>,
     last_ns: Option<u64>,
 }
 
@@ -92,7 +104,7 @@ impl History {
     }
 
     /// The newest `n` frames, oldest first, if that many are held.
-    pub fn last(&self, n: usize) -> Option<Vec<Pair>> {
+    pub fn last(&self, n: usize) -> Option<Vec<Frame>> {
         (self.frames.len() >= n).then(|| {
             self.frames
                 .iter()
@@ -102,7 +114,7 @@ impl History {
         })
     }
 
-    fn append(&mut self, p: Pair) {
+    fn append(&mut self, p: Frame) {
         if self.frames.len() == self.capacity {
             self.frames.pop_front();
         }
@@ -112,7 +124,7 @@ impl History {
     /// Add the frame observed at `stamp_ns`. Frames arrive on the model-rate grid; a frame that
     /// lands `k > 1` periods after the last one means `k − 1` frames were lost: up to
     /// `max_fill` are interpolated, more restart the history.
-    pub fn push(&mut self, stamp_ns: u64, pair: Pair) -> Result<Push, HistoryError> {
+    pub fn push(&mut self, stamp_ns: u64, pair: Frame) -> Result<Push, HistoryError> {
         let Some(last_ns) = self.last_ns else {
             self.append(pair);
             self.last_ns = Some(stamp_ns);
@@ -132,10 +144,13 @@ impl History {
             for k in 1..=missing {
                 let t = k as f64 / steps as f64;
                 let mut mid = prev;
-                for (a, agent) in mid.iter_mut().enumerate() {
+                for (a, agent) in mid.pair.iter_mut().enumerate() {
                     for (j, x) in agent.iter_mut().enumerate() {
-                        *x = prev[a][j].lerp(&pair[a][j], t);
+                        *x = prev.pair[a][j].lerp(&pair.pair[a][j], t);
                     }
+                }
+                for (k, v) in mid.robot.iter_mut().enumerate() {
+                    *v = prev.robot[k] + t * (pair.robot[k] - prev.robot[k]);
                 }
                 self.append(mid);
             }
@@ -154,11 +169,14 @@ impl History {
 mod tests {
     use super::*;
 
-    fn pair(x: f64) -> Pair {
-        [
-            [Vector3::new(x, 0.0, 1.0); NUM_JOINTS],
-            [Vector3::new(-x, 0.0, 1.0); NUM_JOINTS],
-        ]
+    fn pair(x: f64) -> Frame {
+        Frame {
+            pair: [
+                [Vector3::new(x, 0.0, 1.0); NUM_JOINTS],
+                [Vector3::new(-x, 0.0, 1.0); NUM_JOINTS],
+            ],
+            robot: [x; ROBOT_STATE],
+        }
     }
 
     const P: u64 = 66_666_667;
@@ -171,11 +189,12 @@ mod tests {
         // Two frames lost: interpolated on the grid.
         assert_eq!(h.push(4 * P, pair(4.0)), Ok(Push::Filled { filled: 2 }));
         let f = h.last(5).unwrap();
-        let xs: Vec<f64> = f.iter().map(|p| p[0][0].x).collect();
+        let xs: Vec<f64> = f.iter().map(|p| p.pair[0][0].x).collect();
         for (a, b) in xs.iter().zip([0.0, 1.0, 2.0, 3.0, 4.0]) {
             assert!((a - b).abs() < 1e-9, "{xs:?}");
         }
-        assert!((f[2][1][0].x + 2.0).abs() < 1e-9, "agent B too");
+        assert!((f[2].pair[1][0].x + 2.0).abs() < 1e-9, "agent B too");
+        assert!((f[3].robot[5] - 3.0).abs() < 1e-9, "and the robot's joints");
         // Reordered and duplicate frames are refused and change nothing.
         assert!(matches!(
             h.push(3 * P, pair(9.0)),

@@ -13,8 +13,10 @@ use echo_text::SentenceEncoder;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use crate::history::{History, HistoryError, Pair, Push};
+use crate::history::{Frame, History, HistoryError, Pair, Push, ROBOT_STATE};
 use crate::proxy::RobotProxy;
+use echo_hri::data::{decode_robot, encode_robot, robot_joint_names, ROBOT_FEATURES};
+use echo_msgs::{ControlMode, PlanPoint, RobotPlan};
 
 /// Serving settings.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -85,6 +87,8 @@ struct Slot {
     pair: Option<(u32, Other)>,
     prompt: String,
     proxy: RobotProxy,
+    /// The robot's measured joints (robot-agent models).
+    robot_q: [f64; ROBOT_STATE],
     /// Stamp of the newest frame not forecast yet.
     pending: Option<u64>,
     filled: u64,
@@ -191,6 +195,16 @@ impl ForecastServer {
             pair: None,
             prompt,
             proxy: RobotProxy::new(model.clone()),
+            robot_q: {
+                let home = echo_robot::home_pose();
+                let names = robot_joint_names();
+                std::array::from_fn(|k| {
+                    home.iter()
+                        .find(|(n, _)| *n == names[k])
+                        .map(|(_, v)| *v)
+                        .unwrap_or(0.0)
+                })
+            },
             pending: None,
             filled: 0,
             restarts: 0,
@@ -199,7 +213,20 @@ impl ForecastServer {
 
     /// A robot's measured joints (for its stand-in as the second agent).
     pub fn on_joint_state(&mut self, robot: &str, js: &JointState) {
-        self.slot(robot).proxy.update(js);
+        let names = robot_joint_names();
+        let slot = self.slot(robot);
+        slot.proxy.update(js);
+        for (k, n) in names.iter().enumerate() {
+            if let Some(v) = js.position_of(n).filter(|v| v.is_finite()) {
+                slot.robot_q[k] = v;
+            }
+        }
+    }
+
+    /// Whether the model's second agent is the robot itself (an HRI model): its forecasts carry
+    /// a robot plan.
+    pub fn robot_agent(&self) -> bool {
+        self.backend.config().agent_features[1] == ROBOT_FEATURES
     }
 
     /// A new prompt for `robot`; it is embedded now so the next tick does not wait for it.
@@ -231,6 +258,9 @@ impl ForecastServer {
                     da.total_cmp(&db)
                 })?,
         };
+        if self.robot_agent() {
+            return Some((partner.track_id, Other::Robot));
+        }
         let p = v3(&partner.pose.root_position);
         let other = msg
             .tracks
@@ -274,7 +304,11 @@ impl ForecastServer {
             Other::Robot => slot.proxy.joints(),
         };
         let pair: Pair = [a, b];
-        let push = slot.history.push(msg.header.stamp_ns, pair)?;
+        let frame = Frame {
+            pair,
+            robot: slot.robot_q,
+        };
+        let push = slot.history.push(msg.header.stamp_ns, frame)?;
         match push {
             Push::Filled { filled } => slot.filled += filled as u64,
             Push::Restarted { .. } => slot.restarts += 1,
@@ -294,10 +328,13 @@ impl ForecastServer {
     /// One forward pass for every robot with a new frame; a forecast per robot.
     pub fn run_batch(&mut self) -> Vec<(String, Result<Forecast, ServeError>)> {
         let cfg = self.backend.config().clone();
+        let robot_agent = self.robot_agent();
+        let [fa, fb] = cfg.agent_features;
         let mut robots = vec![];
         let mut canon = vec![];
         let mut obs = vec![];
         let mut prompts: Vec<String> = vec![];
+        let mut measured = vec![];
         for (name, slot) in self.slots.iter_mut() {
             let Some(stamp) = slot.pending.take() else {
                 continue;
@@ -305,14 +342,23 @@ impl ForecastServer {
             let Some(frames) = slot.history.last(cfg.obs) else {
                 continue;
             };
-            let frames: Vec<Vec<[Vector3<f64>; NUM_JOINTS]>> =
-                frames.iter().map(|p| p.to_vec()).collect();
-            let (c, agents) = encode_frames(&frames);
-            for a in &agents {
-                for f in a {
+            let pairs: Vec<Vec<[Vector3<f64>; NUM_JOINTS]>> =
+                frames.iter().map(|p| p.pair.to_vec()).collect();
+            let (c, agents) = encode_frames(&pairs);
+            for f in &agents[0] {
+                obs.extend_from_slice(f);
+            }
+            if robot_agent {
+                // The robot in its own base frame (the skeletons' frame): base at the origin.
+                for f in &frames {
+                    obs.extend_from_slice(&encode_robot(&c, &f.robot, [0.0; 3]));
+                }
+            } else {
+                for f in &agents[1] {
                     obs.extend_from_slice(f);
                 }
             }
+            measured.push(slot.robot_q);
             canon.push(c);
             prompts.push(slot.prompt.clone());
             robots.push((name.clone(), stamp, slot.pair.map(|p| p.0).unwrap_or(0)));
@@ -341,7 +387,7 @@ impl ForecastServer {
         let ms = started.elapsed().as_secs_f64() * 1e3;
         self.counters.batches += 1;
         let out = match out {
-            Ok(v) if v.len() == b * 2 * cfg.pred * FEATURES && v.iter().all(|x| x.is_finite()) => v,
+            Ok(v) if v.len() == b * cfg.pred * (fa + fb) && v.iter().all(|x| x.is_finite()) => v,
             Ok(v) => {
                 let msg = format!(
                     "{} values (finite: {})",
@@ -360,8 +406,9 @@ impl ForecastServer {
                     .collect()
             }
         };
-        let per = 2 * cfg.pred * FEATURES;
+        let per = cfg.pred * (fa + fb);
         let mut res = Vec::with_capacity(b);
+        let names = robot_joint_names();
         for (i, ((robot, stamp, partner), c)) in robots.into_iter().zip(canon).enumerate() {
             let human = (0..cfg.pred)
                 .map(|k| {
@@ -374,6 +421,32 @@ impl ForecastServer {
                 .collect();
             let mut header = Header::new(&robot, "", "base_footprint");
             header.stamp_ns = stamp;
+            // A robot-agent model forecasts the robot too: its plan starts at the measured
+            // joints and follows the forecast frames at the model rate.
+            let plan = robot_agent.then(|| {
+                let mut points = vec![PlanPoint {
+                    t: 0.0,
+                    positions: measured[i].to_vec(),
+                    base: None,
+                }];
+                for k in 0..cfg.pred {
+                    let o = i * per + cfg.pred * fa + k * fb;
+                    let (q, _) = decode_robot(&c, &out[o..o + fb]);
+                    points.push(PlanPoint {
+                        t: (k + 1) as f64 / self.cfg.rate_hz,
+                        positions: q,
+                        base: None,
+                    });
+                }
+                let mut h = header.clone();
+                h.frame_id = "odom".into();
+                RobotPlan {
+                    header: h,
+                    mode: ControlMode::Forecast,
+                    joint_names: names.clone(),
+                    points,
+                }
+            });
             self.counters.forecasts += 1;
             res.push((
                 robot,
@@ -383,7 +456,7 @@ impl ForecastServer {
                     rate_hz: self.cfg.rate_hz,
                     partner_id: partner,
                     human,
-                    robot: None,
+                    robot: plan,
                     inference_ms: ms,
                 }),
             ));
@@ -556,5 +629,61 @@ mod tests {
         let out = s.run_batch();
         assert_eq!(out.len(), 1);
         assert_eq!(out[0].1.as_ref().unwrap_err().reason(), "model");
+    }
+
+    #[test]
+    fn a_robot_agent_model_sends_a_plan_from_the_measured_state() {
+        let cfg = ForecasterConfig {
+            pred: 15,
+            agent_features: [FEATURES, ROBOT_FEATURES],
+            ..Default::default()
+        };
+        let mut s = ForecastServer::new(
+            ServerConfig::default(),
+            Box::new(echo_models::ZeroVelocityBackend::new(cfg)),
+            None,
+            "hri",
+            RobotModel::tiago_dual(),
+        )
+        .unwrap();
+        assert!(s.robot_agent());
+        let names = robot_joint_names();
+        let js = JointState {
+            header: Header::new("r", "t", "base_footprint"),
+            name: names.clone(),
+            position: (0..names.len()).map(|k| 0.01 * k as f64).collect(),
+            velocity: vec![],
+            base: None,
+        };
+        s.on_joint_state("r", &js);
+        // Two people in view: the second agent is still the robot.
+        for k in 0..8 {
+            s.on_skeletons(
+                "r",
+                &frame(
+                    "r",
+                    k,
+                    vec![person(1, 1.5, 0.0), person(2, 1.8, 0.4)],
+                    Some(1),
+                ),
+            )
+            .unwrap();
+        }
+        assert_eq!(s.pairing("r"), Some((1, Other::Robot)));
+        let out = s.run_batch();
+        let f = out[0].1.as_ref().unwrap();
+        assert_eq!(f.human.len(), 15);
+        let plan = f.robot.as_ref().expect("a plan");
+        assert_eq!(plan.points.len(), 16);
+        assert_eq!(plan.joint_names, names);
+        for p in &plan.points {
+            for (a, b) in p.positions.iter().zip(&js.position) {
+                assert!(
+                    (a - b).abs() < 1e-5,
+                    "zero velocity holds the measured pose"
+                );
+            }
+        }
+        assert!(plan.points.windows(2).all(|w| w[1].t > w[0].t));
     }
 }

@@ -18,6 +18,14 @@ pub const OBS: usize = 8;
 /// Predicted frames (1.0 s).
 pub const PRED: usize = 15;
 
+/// The robot agent's joints, in feature order: 14 arm joints, torso, head pan, head tilt (the
+/// retargeter's output order).
+pub fn robot_joint_names() -> Vec<String> {
+    let mut v = echo_retarget::net::arm_joints();
+    v.extend(["torso_lift_joint", "head_1_joint", "head_2_joint"].map(String::from));
+    v
+}
+
 /// The robot's features in window frame `c`.
 pub fn encode_robot(c: &Canonical, q: &[f64], base: [f64; 3]) -> [f32; ROBOT_FEATURES] {
     let mut f = [0f32; ROBOT_FEATURES];

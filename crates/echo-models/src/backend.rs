@@ -3,7 +3,6 @@
 
 use candle_core::{Device, Tensor};
 
-use crate::features::FEATURES;
 use crate::model::ForecasterConfig;
 use crate::predictor::Checkpoint;
 
@@ -13,8 +12,9 @@ pub trait Backend: Send {
     fn name(&self) -> String;
     /// The architecture it runs (sizes of inputs and outputs).
     fn config(&self) -> &ForecasterConfig;
-    /// `obs`: b × 2 × obs × FEATURES values; `text`: b × text_dim values (empty when the model
-    /// reads no text). Returns b × 2 × pred × FEATURES values.
+    /// `obs`: per window, agent A's obs × F_a values then agent B's obs × F_b (for two people
+    /// that is b × 2 × obs × 73); `text`: b × text_dim values (empty when the model reads no
+    /// text). Returns per window A's pred × F_a values then B's pred × F_b.
     fn predict(&mut self, b: usize, obs: &[f32], text: &[f32]) -> anyhow::Result<Vec<f32>>;
 }
 
@@ -25,11 +25,12 @@ pub fn check_sizes(
     obs: &[f32],
     text: &[f32],
 ) -> anyhow::Result<()> {
+    let per = cfg.obs * (cfg.agent_features[0] + cfg.agent_features[1]);
     anyhow::ensure!(
-        obs.len() == b * 2 * cfg.obs * FEATURES,
+        obs.len() == b * per,
         "observed features: {} values for a batch of {b}, expected {}",
         obs.len(),
-        b * 2 * cfg.obs * FEATURES
+        b * per
     );
     anyhow::ensure!(
         text.len() == b * cfg.text_dim,
@@ -73,18 +74,20 @@ impl Backend for CandleBackend {
     fn predict(&mut self, b: usize, obs: &[f32], text: &[f32]) -> anyhow::Result<Vec<f32>> {
         let cfg = self.ck.model.config().clone();
         check_sizes(&cfg, b, obs, text)?;
-        let x = Tensor::from_slice(obs, (b, 2, cfg.obs, FEATURES), &self.dev)?;
         let t = if cfg.text_dim > 0 {
             Some(Tensor::from_slice(text, (b, cfg.text_dim), &self.dev)?)
         } else {
             None
         };
-        Ok(self
-            .ck
-            .model
-            .forward(&x, t.as_ref())?
-            .flatten_all()?
-            .to_vec1::<f32>()?)
+        let [fa, fb] = cfg.agent_features;
+        let x = Tensor::from_slice(obs, (b, cfg.obs * (fa + fb)), &self.dev)?;
+        let xa = x.narrow(1, 0, cfg.obs * fa)?.reshape((b, cfg.obs, fa))?;
+        let xb = x
+            .narrow(1, cfg.obs * fa, cfg.obs * fb)?
+            .reshape((b, cfg.obs, fb))?;
+        let ([ya, yb], _) = self.ck.model.forward_pair(&xa, &xb, t.as_ref())?;
+        let y = Tensor::cat(&[ya.flatten_from(1)?, yb.flatten_from(1)?], 1)?;
+        Ok(y.flatten_all()?.to_vec1::<f32>()?)
     }
 }
 
@@ -115,11 +118,15 @@ impl Backend for ZeroVelocityBackend {
     fn predict(&mut self, b: usize, obs: &[f32], text: &[f32]) -> anyhow::Result<Vec<f32>> {
         check_sizes(&self.cfg, b, obs, text)?;
         let (n, p) = (self.cfg.obs, self.cfg.pred);
-        let mut out = Vec::with_capacity(b * 2 * p * FEATURES);
-        for ia in 0..2 * b {
-            let o = (ia * n + n - 1) * FEATURES;
-            for _ in 0..p {
-                out.extend_from_slice(&obs[o..o + FEATURES]);
+        let [fa, fb] = self.cfg.agent_features;
+        let mut out = Vec::with_capacity(b * p * (fa + fb));
+        for i in 0..b {
+            let w = i * n * (fa + fb);
+            for (start, f) in [(w, fa), (w + n * fa, fb)] {
+                let o = start + (n - 1) * f;
+                for _ in 0..p {
+                    out.extend_from_slice(&obs[o..o + f]);
+                }
             }
         }
         Ok(out)
