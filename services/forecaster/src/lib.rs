@@ -190,10 +190,14 @@ pub async fn serve(args: Args, stop: Shutdown) -> Result<()> {
     let inputs = futures::stream::select_all(streams)
         .take_until(Box::pin(async move { stop_inputs.wait().await }));
     let stats = bus.stats();
+    let what = if server.robot_agent() {
+        "forecasting the partner and the robot (HRI model): robot plans go to safety"
+    } else {
+        "forecasting the partner (human-human model: no robot plan)"
+    };
     stats.set_notes(vec![
         format!("model {model_name} on {backend_name}"),
-        "forecasting the partner (human-human model; the robot plan comes with the HRI model)"
-            .into(),
+        what.into(),
         format!(
             "serving {}",
             robots
