@@ -148,6 +148,22 @@ pub fn clip_actors(clip: &Clip, distance_m: f64) -> Vec<Actor> {
         .collect()
 }
 
+/// Person A of a generated interaction, placed so that the robot stands where person B stood
+/// at the start (B's pelvis on the robot's base, B's heading along the robot's +x): the robot
+/// plays B.
+pub fn clip_partner_for_robot(clip: &Clip) -> Vec<Actor> {
+    let b0 = clip.joints(0, 1);
+    let yaw = echo_motion::skeleton::heading(&b0).euler_angles().2;
+    let rot = nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), -yaw);
+    let o = Vector3::new(b0[0].x, b0[0].y, 0.0);
+    vec![Actor::Recorded(Recorded {
+        fps: FPS,
+        frames: (0..clip.frames.len())
+            .map(|f| clip.joints(f, 0).map(|p| rot * (p - o)))
+            .collect(),
+    })]
+}
+
 /// A mock estimator watching scripted people.
 #[derive(Debug, Clone)]
 pub struct MockPerception {

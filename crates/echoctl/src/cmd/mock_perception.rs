@@ -53,6 +53,10 @@ pub struct Args {
     /// Distance of the replayed pair's midpoint in front of the robot, m.
     #[arg(long, default_value_t = 2.8)]
     pub clip_distance: f64,
+    /// With --clip: show only person A, placed so the robot stands where person B stood (the
+    /// robot plays B: the partner offers the handshake to the robot).
+    #[arg(long)]
+    pub robot_plays_b: bool,
 }
 
 /// The generated clip named by `<split>:<index>`.
@@ -104,6 +108,10 @@ pub async fn serve(args: Args, mut stop: Shutdown) -> Result<()> {
     let reporter = bus.spawn_status_reporter(Duration::from_secs(1), stop.clone());
     let model = RobotModel::tiago_dual();
     let mut mock = match &args.clip {
+        Some(spec) if args.robot_plays_b => MockPerception::with_people(
+            cfg.clone(),
+            echo_sim::perception::clip_partner_for_robot(&clip_of(spec)?),
+        ),
         Some(spec) => MockPerception::with_people(
             cfg.clone(),
             echo_sim::perception::clip_actors(&clip_of(spec)?, args.clip_distance),
