@@ -438,8 +438,8 @@ impl ForecastServer {
                         base: None,
                     });
                 }
-                let mut h = header.clone();
-                h.frame_id = "odom".into();
+                let mut h = Header::new(&robot, "forecaster", "odom");
+                h.stamp_ns = stamp;
                 RobotPlan {
                     header: h,
                     mode: ControlMode::Forecast,

@@ -42,6 +42,14 @@ pub struct Args {
     /// mode is set to imitation every second).
     #[arg(long)]
     pub imitate: bool,
+    /// Human–robot mode: the forecaster runs this HRI checkpoint (e.g. models/hri) and plans
+    /// for the robot, and the partner offers a handshake of the test split to the robot.
+    #[arg(long)]
+    pub hri: Option<PathBuf>,
+    /// With --hri: the interaction the partner performs (`<split>:<index>`; test:0 is a
+    /// handshake, test:1 a wave).
+    #[arg(long, default_value = "test:0")]
+    pub hri_clip: String,
     /// Directory for the services' logs (default: a fresh temporary directory).
     #[arg(long)]
     pub log_dir: Option<PathBuf>,
@@ -211,6 +219,80 @@ struct Observed {
     human_frames: u64,
     safety: Option<String>,
     forecasts: ForecastScore,
+    reach: Reach,
+    started: Option<Instant>,
+}
+
+/// How close the robot's grippers come to the partner's hands (HRI mode).
+struct Reach {
+    model: echo_robot::RobotModel,
+    grippers: Option<[[f64; 3]; 2]>,
+    min_m: f64,
+    at_s: f64,
+}
+
+impl Default for Reach {
+    fn default() -> Self {
+        Reach {
+            model: echo_robot::RobotModel::tiago_dual(),
+            grippers: None,
+            min_m: f64::INFINITY,
+            at_s: 0.0,
+        }
+    }
+}
+
+impl Reach {
+    fn on_state(&mut self, v: &serde_json::Value) {
+        let (Some(names), Some(pos)) = (v.get("name"), v.get("position")) else {
+            return;
+        };
+        let (Ok(names), Ok(pos)) = (
+            serde_json::from_value::<Vec<String>>(names.clone()),
+            serde_json::from_value::<Vec<f64>>(pos.clone()),
+        ) else {
+            return;
+        };
+        let m = &self.model;
+        let Ok(q) = m.values_from(
+            names
+                .iter()
+                .zip(&pos)
+                .filter(|(n, _)| m.joint_index(n).is_some())
+                .map(|(n, p)| (n.as_str(), *p)),
+        ) else {
+            return;
+        };
+        let g = |f: &str| {
+            m.fk(&q, f)
+                .map(|t| [t.translation.x, t.translation.y, t.translation.z])
+                .unwrap_or([f64::NAN; 3])
+        };
+        self.grippers = Some([
+            g("gripper_left_grasping_frame"),
+            g("gripper_right_grasping_frame"),
+        ]);
+    }
+
+    fn on_humans(&mut self, v: &serde_json::Value, t: f64) {
+        let (Some(g), Some(pid)) = (self.grippers, v.get("partner_id").and_then(|x| x.as_u64()))
+        else {
+            return;
+        };
+        let Some(j) = joints_of(v, pid) else { return };
+        for w in [20, 21] {
+            for e in g {
+                let d = ((j[w][0] - e[0]).powi(2)
+                    + (j[w][1] - e[1]).powi(2)
+                    + (j[w][2] - e[2]).powi(2))
+                .sqrt();
+                if d < self.min_m {
+                    self.min_m = d;
+                    self.at_s = t;
+                }
+            }
+        }
+    }
 }
 
 enum Running {
@@ -296,8 +378,11 @@ pub async fn run(args: Args) -> Result<()> {
     }
 
     // Count from now: the rates in the summary are over the demo's own duration.
-    *observed.lock().unwrap_or_else(|e| e.into_inner()) = Observed::default();
     let started = Instant::now();
+    *observed.lock().unwrap_or_else(|e| e.into_inner()) = Observed {
+        started: Some(started),
+        ..Observed::default()
+    };
     let mut stop = shutdown::on_signals();
     let prompt = bus.publisher(&topics::prompt(&robot)).await?;
     if failure.is_none() {
@@ -407,8 +492,19 @@ fn service_flags(name: &str, args: &Args) -> Vec<String> {
             if args.bystander {
                 v.push("--bystander".into());
             }
+            if args.hri.is_some() {
+                v.extend([
+                    "--clip".into(),
+                    args.hri_clip.clone(),
+                    "--robot-plays-b".into(),
+                ]);
+            }
             v
         }
+        "forecaster" => match &args.hri {
+            Some(m) => vec!["--model".into(), m.display().to_string()],
+            None => vec![],
+        },
         "mock-robot" => vec!["--head-sweep".into(), "0.15".into()],
         // The robot interface is required: without it the safety service holds the robot.
         "safety" => vec!["--require".into(), "mock-robot".into()],
@@ -523,9 +619,16 @@ async fn subscribe_all(
                     o.forecasts.on_forecast(v);
                 }
             }
+            if short == "robot/state" {
+                if let Some(v) = &v {
+                    o.reach.on_state(v);
+                }
+            }
             if short == "humans" {
                 if let Some(v) = &v {
                     o.forecasts.on_humans(v);
+                    let t = o.started.map(|s| s.elapsed().as_secs_f64()).unwrap_or(0.0);
+                    o.reach.on_humans(v, t);
                 }
                 o.human_frames += 1;
                 if v.as_ref()
@@ -633,6 +736,13 @@ fn summary(o: &Observed, elapsed: f64) -> serde_json::Value {
         );
     }
     let (rejected, dropped) = totals(o);
+    let reach = o.reach.min_m.is_finite().then(|| {
+        serde_json::json!({
+            "closest_gripper_to_partner_hand_m": o.reach.min_m,
+            "at_s": o.reach.at_s,
+            "contact": o.reach.min_m <= 0.10,
+        })
+    });
     let forecast = o.forecasts.means().map(|(m, h, n)| {
         let inf = latency_summary(o.forecasts.inference_ms.iter().copied());
         serde_json::json!({
@@ -646,6 +756,7 @@ fn summary(o: &Observed, elapsed: f64) -> serde_json::Value {
     serde_json::json!({
         "duration_s": elapsed,
         "forecast": forecast,
+        "reach": reach,
         "keys": keys_json,
         "services": services,
         "humans": { "frames": o.human_frames, "partner_frames": o.partner_frames },
@@ -715,6 +826,14 @@ fn render_summary(s: &serde_json::Value) -> String {
             f["hold_error_1s_mm"].as_f64().unwrap_or(0.0),
             f["inference_median_ms"].as_f64().unwrap_or(0.0),
             f["inference_p99_ms"].as_f64().unwrap_or(0.0),
+        ));
+    }
+    if let Some(r) = s["reach"].as_object() {
+        out.push_str(&format!(
+            "reach: the robot's gripper came within {:.3} m of the partner's hand (at t = {:.1} s): {}\n",
+            r["closest_gripper_to_partner_hand_m"].as_f64().unwrap_or(f64::NAN),
+            r["at_s"].as_f64().unwrap_or(0.0),
+            if r["contact"].as_bool() == Some(true) { "contact (≤ 0.10 m)" } else { "no contact" }
         ));
     }
     if let Some(st) = s["safety_state"].as_str() {
