@@ -1,6 +1,6 @@
 //! Human–robot mode end to end, as separate processes over Zenoh on loopback: mock perception
 //! replays person A of a handshake of the test split, placed so the robot stands where person B
-//! stood; the HRI forecaster plans for the robot; safety filters; the simulated robot moves.
+//! stood when the two were closest; the HRI forecaster plans for the robot; safety filters; the simulated robot moves.
 //! The robot's gripper gets closer to the partner's hand than the retargeted reference (person B
 //! turned into the robot, base where B started) does, with no safety violation.
 
@@ -39,10 +39,10 @@ async fn the_robot_reaches_for_the_offered_hand() -> anyhow::Result<()> {
     let hri = root.join("models/hri");
     let model = RobotModel::tiago_dual();
 
-    // The retargeted reference of the same clip, base fixed where B started (as the robot's).
+    // The retargeted reference of the same clip, base fixed where the robot stands.
     let clip = generate(&Split::Test.clip(0));
     let r = echo_retarget::Retargeter::load(&root.join("models/retargeter"), model.clone())?;
-    let b0 = clip.joints(0, 1);
+    let b0 = clip.joints(echo_sim::perception::closest_frame(&clip), 1);
     let yaw = echo_motion::skeleton::heading(&b0).euler_angles().2;
     let rot = nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), -yaw);
     let o = Vector3::new(b0[0].x, b0[0].y, 0.0);
@@ -51,7 +51,8 @@ async fn the_robot_reaches_for_the_offered_hand() -> anyhow::Result<()> {
         let Some(pose) = r.retarget(&[clip.joints(f, 1)])?.pop().flatten() else {
             continue;
         };
-        let a = clip.joints(f, 0).map(|p| rot * (p - o));
+        let back = Vector3::new(echo_sim::perception::ROBOT_SETBACK_M, 0.0, 0.0);
+        let a = clip.joints(f, 0).map(|p| rot * (p - o) + back);
         for g in grippers(&model, &pose.names, &pose.positions) {
             for w in [j::L_WRIST, j::R_WRIST] {
                 reference_min = reference_min.min((g - a[w]).norm());

@@ -148,18 +148,33 @@ pub fn clip_actors(clip: &Clip, distance_m: f64) -> Vec<Actor> {
         .collect()
 }
 
+/// How far behind person B's pelvis the robot stands when it plays B, m.
+pub const ROBOT_SETBACK_M: f64 = 0.25;
+
+/// The frame where the two people of a clip are closest (pelvis to pelvis).
+pub fn closest_frame(clip: &Clip) -> usize {
+    (0..clip.frames.len())
+        .min_by(|a, b| {
+            let d = |f: usize| (clip.joints(f, 0)[0] - clip.joints(f, 1)[0]).xy().norm();
+            d(*a).total_cmp(&d(*b))
+        })
+        .unwrap_or(0)
+}
+
 /// Person A of a generated interaction, placed so that the robot stands where person B stood
-/// at the start (B's pelvis on the robot's base, B's heading along the robot's +x): the robot
-/// plays B.
+/// when the two were closest (B's pelvis on the robot's base, B's heading along the robot's +x):
+/// the robot, which does not walk, plays B at the moment of the interaction.
 pub fn clip_partner_for_robot(clip: &Clip) -> Vec<Actor> {
-    let b0 = clip.joints(0, 1);
+    let b0 = clip.joints(closest_frame(clip), 1);
     let yaw = echo_motion::skeleton::heading(&b0).euler_angles().2;
     let rot = nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), -yaw);
     let o = Vector3::new(b0[0].x, b0[0].y, 0.0);
+    // The robot's base is wider than a person's stance: it stands ROBOT_SETBACK_M behind B.
+    let back = Vector3::new(ROBOT_SETBACK_M, 0.0, 0.0);
     vec![Actor::Recorded(Recorded {
         fps: FPS,
         frames: (0..clip.frames.len())
-            .map(|f| clip.joints(f, 0).map(|p| rot * (p - o)))
+            .map(|f| clip.joints(f, 0).map(|p| rot * (p - o) + back))
             .collect(),
     })]
 }

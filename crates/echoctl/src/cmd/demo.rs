@@ -385,6 +385,13 @@ pub async fn run(args: Args) -> Result<()> {
     };
     let mut stop = shutdown::on_signals();
     let prompt = bus.publisher(&topics::prompt(&robot)).await?;
+    let hri_intent = match &args.hri {
+        Some(_) => {
+            let clip = mock_perception::clip_of(&args.hri_clip)?;
+            Some((clip.texts.first().cloned().unwrap_or_default(), clip.params.kind))
+        }
+        None => None,
+    };
     if failure.is_none() {
         let mut tick = tokio::time::interval(Duration::from_millis(500));
         let tty = std::io::stdout().is_terminal();
@@ -413,6 +420,18 @@ pub async fn run(args: Args) -> Result<()> {
                         text: "One person copies the other's arm movements like a mirror.".into(),
                         interaction: Interaction::Imitation,
                         mode: ControlMode::Imitation,
+                    })
+                    .await?;
+            }
+            // HRI: the interaction is announced (its description conditions the forecaster,
+            // its type lets the safety service allow gripper–hand contact at low speed).
+            if let (Some((text, kind)), true) = (&hri_intent, ticks.is_multiple_of(2)) {
+                prompt
+                    .put(InteractionIntent {
+                        header: Header::new(robot.as_str(), "", ""),
+                        text: text.clone(),
+                        interaction: *kind,
+                        mode: ControlMode::Forecast,
                     })
                     .await?;
             }
@@ -611,7 +630,16 @@ async fn subscribe_all(
                     .and_then(|v| v.get("state"))
                     .and_then(|s| s.as_str())
                 {
-                    o.safety = Some(st.to_string());
+                    let reasons: Vec<String> = v
+                        .as_ref()
+                        .and_then(|v| v.get("reasons"))
+                        .and_then(|r| serde_json::from_value(r.clone()).ok())
+                        .unwrap_or_default();
+                    o.safety = Some(if reasons.is_empty() {
+                        st.to_string()
+                    } else {
+                        format!("{st} ({})", reasons.join("; "))
+                    });
                 }
             }
             if short == "forecast" {

@@ -54,7 +54,7 @@ pub struct Args {
     #[arg(long, default_value_t = 2.8)]
     pub clip_distance: f64,
     /// With --clip: show only person A, placed so the robot stands where person B stood (the
-    /// robot plays B: the partner offers the handshake to the robot).
+    /// robot plays B where B stood when the two were closest: the partner walks up to the robot).
     #[arg(long)]
     pub robot_plays_b: bool,
 }
