@@ -388,7 +388,10 @@ pub async fn run(args: Args) -> Result<()> {
     let hri_intent = match &args.hri {
         Some(_) => {
             let clip = mock_perception::clip_of(&args.hri_clip)?;
-            Some((clip.texts.first().cloned().unwrap_or_default(), clip.params.kind))
+            Some((
+                clip.texts.first().cloned().unwrap_or_default(),
+                clip.params.kind,
+            ))
         }
         None => None,
     };
