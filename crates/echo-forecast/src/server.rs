@@ -471,7 +471,6 @@ impl ForecastServer {
 mod tests {
     use super::*;
     use echo_models::model::ForecasterConfig;
-    use echo_msgs::HumanPose;
 
     /// Zero velocity, with a NaN in its output when asked.
     struct Broken(echo_models::ZeroVelocityBackend);
@@ -515,20 +514,7 @@ mod tests {
             .iter()
             .map(|p| [p.x - root.x + x, p.y - root.y + y, p.z])
             .collect();
-        HumanTrack {
-            track_id: id,
-            pose: HumanPose {
-                root_position: joints[0],
-                joints,
-                root_orientation: [0.0, 0.0, 0.0, 1.0],
-                local_positions: vec![],
-                local_rotations: vec![],
-                confidence: vec![1.0; NUM_JOINTS],
-            },
-            root_velocity: [0.0; 3],
-            age_frames: 1,
-            filled_joints: vec![],
-        }
+        HumanTrack::from_joints(id, joints)
     }
 
     fn frame(robot: &str, k: u64, tracks: Vec<HumanTrack>, partner: Option<u32>) -> HumanSkeletons {

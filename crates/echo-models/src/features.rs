@@ -108,6 +108,23 @@ pub fn encode_frames(frames: &[Frame]) -> (Canonical, Vec<Vec<[f32; FEATURES]>>)
     (c, agents)
 }
 
+/// Observed features of windows in the backends' layout (per window: A's frames, then B's),
+/// using each window's last `obs` frames, and the window frames used.
+pub fn encode_observed(ws: &[&echo_eval::Window], obs: usize) -> (Vec<Canonical>, Vec<f32>) {
+    let mut canon = Vec::with_capacity(ws.len());
+    let mut data = Vec::with_capacity(ws.len() * 2 * obs * FEATURES);
+    for w in ws {
+        let (c, agents) = encode_frames(&w.obs[w.obs.len() - obs..]);
+        for a in &agents {
+            for f in a {
+                data.extend_from_slice(f);
+            }
+        }
+        canon.push(c);
+    }
+    (canon, data)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

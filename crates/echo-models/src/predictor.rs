@@ -8,7 +8,7 @@ use echo_eval::metrics::Frame;
 use echo_eval::{Predictor, Window};
 use serde::{Deserialize, Serialize};
 
-use crate::features::{decode, encode_frames, FEATURES};
+use crate::features::{decode, encode_observed, FEATURES};
 use crate::model::{Forecaster, ForecasterConfig};
 use crate::train::TrainConfig;
 use echo_text::SentenceEncoder;
@@ -57,17 +57,7 @@ impl Predictor for ModelPredictor<'_> {
 
     fn predict(&mut self, batch: &[&Window]) -> Vec<Vec<Frame>> {
         let cfg = self.model.config();
-        let mut canon = Vec::with_capacity(batch.len());
-        let mut data = Vec::with_capacity(batch.len() * 2 * cfg.obs * FEATURES);
-        for w in batch {
-            let (c, agents) = encode_frames(&w.obs[w.obs.len() - cfg.obs..]);
-            for a in &agents {
-                for f in a {
-                    data.extend_from_slice(f);
-                }
-            }
-            canon.push(c);
-        }
+        let (canon, data) = encode_observed(batch, cfg.obs);
         let text = self.prompts(batch);
         let out = Tensor::from_vec(data, (batch.len(), 2, cfg.obs, FEATURES), &self.dev)
             .and_then(|x| self.model.forward(&x, text.as_ref()))

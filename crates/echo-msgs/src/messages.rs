@@ -293,6 +293,27 @@ pub struct HumanTrack {
     pub filled_joints: Vec<u8>,
 }
 
+impl HumanTrack {
+    /// A track from joint positions alone — root at the pelvis, identity orientation, full
+    /// confidence, no local pose — for tests and stand-ins.
+    pub fn from_joints(track_id: u32, joints: Vec<[f64; 3]>) -> HumanTrack {
+        HumanTrack {
+            track_id,
+            pose: HumanPose {
+                root_position: joints.first().copied().unwrap_or([0.0; 3]),
+                confidence: vec![1.0; joints.len()],
+                joints,
+                root_orientation: [0.0, 0.0, 0.0, 1.0],
+                local_positions: vec![],
+                local_rotations: vec![],
+            },
+            root_velocity: [0.0; 3],
+            age_frames: 1,
+            filled_joints: vec![],
+        }
+    }
+}
+
 /// Every tracked person at one instant, at the model rate. Frame: `base_footprint`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct HumanSkeletons {

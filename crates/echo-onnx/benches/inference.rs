@@ -37,15 +37,8 @@ fn bench(c: &mut Criterion) {
         .collect();
     let mut g = c.benchmark_group("forecaster");
     for b in [1usize, 16] {
-        let mut obs = vec![];
-        for w in windows.iter().cycle().take(b) {
-            let (_, agents) = echo_models::features::encode_frames(&w.obs[w.obs.len() - cfg.obs..]);
-            for a in &agents {
-                for f in a {
-                    obs.extend_from_slice(f);
-                }
-            }
-        }
+        let ws: Vec<&echo_eval::Window> = windows.iter().cycle().take(b).collect();
+        let (_, obs) = echo_models::features::encode_observed(&ws, cfg.obs);
         let text: Vec<f32> = (0..b).flat_map(|_| emb.iter().copied()).collect();
         for be in backends.iter_mut() {
             let name = be.name();

@@ -17,6 +17,20 @@ pub fn arm_joints() -> Vec<String> {
         .collect()
 }
 
+/// The arm joints' values in the robot's home pose (the constant baseline of the evaluation).
+pub fn home_arms() -> Vec<f64> {
+    let home = echo_robot::home_pose();
+    arm_joints()
+        .iter()
+        .map(|j| {
+            home.iter()
+                .find(|(k, _)| k == j)
+                .map(|(_, v)| *v)
+                .unwrap_or(0.0)
+        })
+        .collect()
+}
+
 /// Robot frames whose positions give the limb directions: shoulder, elbow, wrist per arm.
 pub const LIMB_FRAMES: [&str; 6] = [
     "arm_left_3_link",

@@ -4,7 +4,6 @@
 
 use echo_motion::synth::{generate, Split};
 use echo_retarget::eval::{evaluate, evaluate_constant};
-use echo_retarget::net::arm_joints;
 use echo_retarget::retargeter::{head_rule, torso_rule};
 use echo_retarget::train::HumanSet;
 use echo_retarget::Retargeter;
@@ -26,16 +25,7 @@ fn shipped_retargeter_beats_the_home_pose_on_held_out_poses() {
     let model = RobotModel::tiago_dual();
     let held = HumanSet::from_split(Split::HeldOut, 0..26, 6);
     let ev = evaluate(r.net(), &model, &held).unwrap();
-    let home: Vec<f64> = arm_joints()
-        .iter()
-        .map(|n| {
-            echo_robot::home_pose()
-                .iter()
-                .find(|(k, _)| k == n)
-                .map(|(_, v)| *v)
-                .unwrap_or(0.0)
-        })
-        .collect();
+    let home = echo_retarget::net::home_arms();
     let base = evaluate_constant(&model, &held, &home).unwrap();
     eprintln!(
         "held-out split: retargeter {:.1}°, home pose {:.1}° (mean limb angle)",

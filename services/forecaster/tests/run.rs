@@ -7,7 +7,7 @@ use echo_bus::{Received, Stats};
 use echo_forecast::{ForecastServer, ServerConfig};
 use echo_models::model::ForecasterConfig;
 use echo_models::ZeroVelocityBackend;
-use echo_msgs::{Forecast, Header, HumanPose, HumanSkeletons, HumanTrack};
+use echo_msgs::{Forecast, Header, HumanSkeletons, HumanTrack};
 use forecaster::{run, Input, Output};
 use futures::StreamExt;
 
@@ -30,20 +30,7 @@ fn frame(robot: &str, k: u64) -> Input {
     let msg = HumanSkeletons {
         header,
         rate_hz: 15.0,
-        tracks: vec![HumanTrack {
-            track_id: 1,
-            pose: HumanPose {
-                root_position: joints[0],
-                joints,
-                root_orientation: [0.0, 0.0, 0.0, 1.0],
-                local_positions: vec![],
-                local_rotations: vec![],
-                confidence: vec![1.0; 22],
-            },
-            root_velocity: [0.0; 3],
-            age_frames: k as u32,
-            filled_joints: vec![],
-        }],
+        tracks: vec![HumanTrack::from_joints(1, joints)],
         partner_id: Some(1),
     };
     Input::Skeletons(

@@ -5,8 +5,8 @@ use std::time::Instant;
 use echo_bus::{Received, Stats};
 use echo_motion::synth::{generate, Split};
 use echo_msgs::{
-    ControlMode, Header, HumanPose, HumanSkeletons, HumanTrack, Interaction, InteractionIntent,
-    JointState, RobotPlan,
+    ControlMode, Header, HumanSkeletons, HumanTrack, Interaction, InteractionIntent, JointState,
+    RobotPlan,
 };
 use echo_retarget::imitation::{ImitationConfig, Imitator};
 use echo_retarget::Retargeter;
@@ -48,20 +48,7 @@ fn skeletons(k: u64) -> HumanSkeletons {
     HumanSkeletons {
         header,
         rate_hz: 15.0,
-        tracks: vec![HumanTrack {
-            track_id: 4,
-            pose: HumanPose {
-                root_position: joints[0],
-                joints,
-                root_orientation: [0.0, 0.0, 0.0, 1.0],
-                local_positions: vec![],
-                local_rotations: vec![],
-                confidence: vec![1.0; 22],
-            },
-            root_velocity: [0.0; 3],
-            age_frames: 1,
-            filled_joints: vec![],
-        }],
+        tracks: vec![HumanTrack::from_joints(4, joints)],
         partner_id: Some(4),
     }
 }

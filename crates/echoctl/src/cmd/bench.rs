@@ -97,15 +97,8 @@ fn forecaster(stem: &std::path::Path, samples: usize) -> Result<()> {
         .flat_map(|c| echo_eval::window::windows(c, 4))
         .collect();
     for b in [1usize, 16] {
-        let mut obs = vec![];
-        for w in windows.iter().cycle().take(b) {
-            let (_, agents) = echo_models::features::encode_frames(&w.obs[w.obs.len() - cfg.obs..]);
-            for a in &agents {
-                for f in a {
-                    obs.extend_from_slice(f);
-                }
-            }
-        }
+        let ws: Vec<&echo_eval::Window> = windows.iter().cycle().take(b).collect();
+        let (_, obs) = echo_models::features::encode_observed(&ws, cfg.obs);
         let text: Vec<f32> = (0..b).flat_map(|_| emb.iter().copied()).collect();
         for be in backends.iter_mut() {
             for _ in 0..10 {

@@ -113,16 +113,7 @@ fn retargeter(args: &Args, stem: &std::path::Path, split: Split) -> Result<()> {
     let r = echo_retarget::Retargeter::load(stem, model.clone())?;
     let n = args.clips_per_kind * KINDS.len() as u64;
     let set = HumanSet::from_split(split, 0..n, 3);
-    let home: Vec<f64> = echo_retarget::net::arm_joints()
-        .iter()
-        .map(|j| {
-            echo_robot::home_pose()
-                .iter()
-                .find(|(k, _)| k == j)
-                .map(|(_, v)| *v)
-                .unwrap_or(0.0)
-        })
-        .collect();
+    let home = echo_retarget::net::home_arms();
     let mut rows: Vec<(String, Evaluation)> = vec![
         (
             "robot home pose (constant)".into(),
