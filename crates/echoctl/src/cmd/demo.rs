@@ -221,6 +221,8 @@ struct Observed {
     forecasts: ForecastScore,
     reach: Reach,
     started: Option<Instant>,
+    /// Human–robot mode: the reach of the robot's grippers is reported.
+    hri: bool,
 }
 
 /// How close the robot's grippers come to the partner's hands (HRI mode).
@@ -381,6 +383,7 @@ pub async fn run(args: Args) -> Result<()> {
     let started = Instant::now();
     *observed.lock().unwrap_or_else(|e| e.into_inner()) = Observed {
         started: Some(started),
+        hri: args.hri.is_some(),
         ..Observed::default()
     };
     let mut stop = shutdown::on_signals();
@@ -767,7 +770,7 @@ fn summary(o: &Observed, elapsed: f64) -> serde_json::Value {
         );
     }
     let (rejected, dropped) = totals(o);
-    let reach = o.reach.min_m.is_finite().then(|| {
+    let reach = (o.hri && o.reach.min_m.is_finite()).then(|| {
         serde_json::json!({
             "closest_gripper_to_partner_hand_m": o.reach.min_m,
             "at_s": o.reach.at_s,
