@@ -1,0 +1,59 @@
+//! Every backend the service offers loads the shipped checkpoint and forecasts the same window
+//! alike (ONNX Runtime within 1e-4 of candle).
+
+use clap::Parser;
+use forecaster::{load_backend, Args};
+
+#[derive(Parser)]
+struct Cli {
+    #[command(flatten)]
+    args: Args,
+}
+
+fn args(backend: &str) -> Args {
+    let model = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/forecaster");
+    Cli::parse_from([
+        "forecaster",
+        "--model",
+        model.to_str().unwrap_or_default(),
+        "--backend",
+        backend,
+    ])
+    .args
+}
+
+#[test]
+fn candle_onnx_and_zero_velocity_backends_agree_on_shapes_and_values() {
+    if echo_onnx::runtime::locate_dylib().is_none() {
+        assert!(
+            std::env::var("ECHO_REQUIRE_ASSETS").is_err(),
+            "ONNX Runtime not installed: run scripts/setup"
+        );
+        return;
+    }
+    let (mut candle, text, _) = load_backend(&args("candle")).unwrap();
+    let (mut ort, _, _) = load_backend(&args("onnx")).unwrap();
+    let (mut zv, _, _) = load_backend(&args("zero-velocity")).unwrap();
+    assert!(load_backend(&args("tensorrt")).is_err());
+    let cfg = candle.config().clone();
+    let clip = echo_motion::synth::generate(&echo_motion::synth::Split::Test.clip(0));
+    let w = echo_eval::window::windows(&clip, 8);
+    let refs: Vec<&echo_eval::Window> = w.iter().take(3).collect();
+    let (_, obs) = echo_models::features::encode_observed(&refs, cfg.obs);
+    let emb = text
+        .expect("the shipped model reads text")
+        .embed_one(&clip.texts[0])
+        .unwrap();
+    let t: Vec<f32> = (0..3).flat_map(|_| emb.iter().copied()).collect();
+    let a = candle.predict(3, &obs, &t).unwrap();
+    let b = ort.predict(3, &obs, &t).unwrap();
+    let z = zv.predict(3, &obs, &[]).unwrap();
+    assert_eq!(a.len(), b.len());
+    assert_eq!(a.len(), z.len());
+    let d = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0f32, f32::max);
+    assert!(d < 1e-4, "candle and ONNX Runtime differ by {d}");
+}
