@@ -9,6 +9,25 @@ use echo_bus::{keys, topics};
 use echo_msgs::{now_ns, ControlMode, Header, Interaction, InteractionIntent, SafetyState};
 use echo_system_tests::Harness;
 
+/// One reply of the retargeter's batch queryable.
+async fn query(
+    bus: &echo_bus::Bus,
+    robot: &echo_bus::RobotId,
+    payload: String,
+) -> anyhow::Result<zenoh::query::Reply> {
+    let replies = bus
+        .session()
+        .get(keys::retarget_batch(robot))
+        .payload(payload)
+        .timeout(Duration::from_secs(5))
+        .await
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    replies
+        .recv_async()
+        .await
+        .map_err(|e| anyhow::anyhow!("{e}"))
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_robot_imitates_the_partner_through_the_safety_filter() -> anyhow::Result<()> {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -98,34 +117,14 @@ async fn the_robot_imitates_the_partner_through_the_safety_filter() -> anyhow::R
     let clip = echo_motion::synth::generate(&echo_motion::synth::Split::Test.clip(0));
     let pose: Vec<[f64; 3]> = clip.joints(3, 0).iter().map(|p| [p.x, p.y, p.z]).collect();
     let req = serde_json::json!({ "poses": [pose] }).to_string();
-    let replies = bus
-        .session()
-        .get(keys::retarget_batch(&robot))
-        .payload(req)
-        .timeout(Duration::from_secs(5))
-        .await
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let reply = replies
-        .recv_async()
-        .await
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let reply = query(&bus, &robot, req).await?;
     let sample = reply
         .result()
         .map_err(|e| anyhow::anyhow!("error reply: {e:?}"))?;
     let v: serde_json::Value = serde_json::from_slice(&sample.payload().to_bytes())?;
     assert_eq!(v["poses"][0].as_array().map(|a| a.len()), Some(17));
     // A malformed request gets an error reply, and the service keeps running.
-    let replies = bus
-        .session()
-        .get(keys::retarget_batch(&robot))
-        .payload("{\"poses\": 3}")
-        .timeout(Duration::from_secs(5))
-        .await
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let reply = replies
-        .recv_async()
-        .await
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let reply = query(&bus, &robot, "{\"poses\": 3}".into()).await?;
     assert!(reply.result().is_err());
     assert!(h.is_running("retargeter"));
     Ok(())

@@ -115,6 +115,8 @@ pub struct ForecastServer {
     text: Option<SentenceEncoder>,
     model_name: String,
     robot_model: RobotModel,
+    /// The robot agent's joint names (feature order), once.
+    robot_names: Vec<String>,
     slots: BTreeMap<String, Slot>,
     counters: Counters,
 }
@@ -154,6 +156,7 @@ impl ForecastServer {
             robot_model,
             slots: BTreeMap::new(),
             counters: Counters::default(),
+            robot_names: robot_joint_names(),
         })
     }
 
@@ -189,7 +192,7 @@ impl ForecastServer {
             self.cfg.max_fill_frames,
             self.cfg.default_prompt.clone(),
         );
-        let model = &self.robot_model;
+        let (model, names) = (&self.robot_model, &self.robot_names);
         self.slots.entry(robot.to_string()).or_insert_with(|| Slot {
             history: History::new(rate, 2 * obs, fill),
             pair: None,
@@ -197,7 +200,6 @@ impl ForecastServer {
             proxy: RobotProxy::new(model.clone()),
             robot_q: {
                 let home = echo_robot::home_pose();
-                let names = robot_joint_names();
                 std::array::from_fn(|k| {
                     home.iter()
                         .find(|(n, _)| *n == names[k])
@@ -213,10 +215,12 @@ impl ForecastServer {
 
     /// A robot's measured joints (for its stand-in as the second agent).
     pub fn on_joint_state(&mut self, robot: &str, js: &JointState) {
-        let names = robot_joint_names();
-        let slot = self.slot(robot);
+        self.slot(robot);
+        let Some(slot) = self.slots.get_mut(robot) else {
+            return;
+        };
         slot.proxy.update(js);
-        for (k, n) in names.iter().enumerate() {
+        for (k, n) in self.robot_names.iter().enumerate() {
             if let Some(v) = js.position_of(n).filter(|v| v.is_finite()) {
                 slot.robot_q[k] = v;
             }
@@ -408,7 +412,7 @@ impl ForecastServer {
         };
         let per = cfg.pred * (fa + fb);
         let mut res = Vec::with_capacity(b);
-        let names = robot_joint_names();
+        let names = &self.robot_names;
         for (i, ((robot, stamp, partner), c)) in robots.into_iter().zip(canon).enumerate() {
             let human = (0..cfg.pred)
                 .map(|k| {

@@ -51,17 +51,9 @@ pub fn decode_robot(c: &Canonical, f: &[f32]) -> (Vec<f64>, [f64; 3]) {
     let q = f[..ROBOT_JOINTS].iter().map(|v| *v as f64).collect();
     let o = ROBOT_JOINTS;
     let p = c.window_to_world(&Vector3::new(f[o] as f64, f[o + 1] as f64, 0.0));
-    let quat = nalgebra::Quaternion::new(
-        f[o + 6] as f64,
-        f[o + 3] as f64,
-        f[o + 4] as f64,
-        f[o + 5] as f64,
-    );
-    let yaw = if quat.norm() > 1e-6 {
-        UnitQuaternion::from_quaternion(quat).euler_angles().2
-    } else {
-        0.0
-    };
+    let yaw = echo_models::features::quaternion(&f[o + 3..o + 7])
+        .euler_angles()
+        .2;
     (q, [p.x, p.y, yaw + c.yaw()])
 }
 

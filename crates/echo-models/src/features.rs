@@ -76,21 +76,22 @@ pub fn encode(c: &Canonical, joints: &[Vector3<f64>; NUM_JOINTS]) -> [f32; FEATU
     f
 }
 
+/// A unit quaternion from 4 feature values `[x, y, z, w]`, renormalised (any 4 values decode;
+/// near-zero ones to the identity).
+pub fn quaternion(v: &[f32]) -> UnitQuaternion<f64> {
+    let q = nalgebra::Quaternion::new(v[3] as f64, v[0] as f64, v[1] as f64, v[2] as f64);
+    if q.norm() > 1e-6 {
+        UnitQuaternion::from_quaternion(q)
+    } else {
+        UnitQuaternion::identity()
+    }
+}
+
 /// Joints (world) back from features: the quaternion is renormalised (any 4 values decode).
 pub fn decode(c: &Canonical, f: &[f32]) -> [Vector3<f64>; NUM_JOINTS] {
     let o = 3 * NUM_JOINTS;
     let root = Vector3::new(f[o] as f64, f[o + 1] as f64, f[o + 2] as f64);
-    let q = nalgebra::Quaternion::new(
-        f[o + 6] as f64,
-        f[o + 3] as f64,
-        f[o + 4] as f64,
-        f[o + 5] as f64,
-    );
-    let h = if q.norm() > 1e-6 {
-        UnitQuaternion::from_quaternion(q)
-    } else {
-        UnitQuaternion::identity()
-    };
+    let h = quaternion(&f[o + 3..o + 7]);
     std::array::from_fn(|k| {
         let l = Vector3::new(f[3 * k] as f64, f[3 * k + 1] as f64, f[3 * k + 2] as f64);
         c.to_world(&(root + h * l))

@@ -4,7 +4,6 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use echo_models::{Backend, CandleBackend, Checkpoint};
-use prost::Message;
 
 fn bench(c: &mut Criterion) {
     let stem = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/forecaster");
@@ -19,13 +18,8 @@ fn bench(c: &mut Criterion) {
                 .expect("embedding")
         })
         .unwrap_or_default();
-    let weights =
-        candle_core::safetensors::load(stem.with_extension("safetensors"), &dev).expect("weights");
-    let onnx = echo_onnx::export::build(weights, &cfg)
-        .expect("export")
-        .encode_to_vec();
     let mut backends: Vec<Box<dyn Backend>> = vec![Box::new(CandleBackend::new(ck, dev))];
-    match echo_onnx::OrtBackend::from_bytes(&onnx, cfg.clone(), 0) {
+    match echo_onnx::OrtBackend::from_checkpoint(&stem, cfg.clone(), 0) {
         Ok(b) => backends.push(Box::new(b)),
         Err(e) => eprintln!("onnxruntime not benchmarked: {e}"),
     }

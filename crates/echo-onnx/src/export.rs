@@ -385,6 +385,14 @@ pub fn build(weights: HashMap<String, Tensor>, cfg: &ForecasterConfig) -> Result
     })
 }
 
+/// The ONNX model of `<stem>.safetensors` for architecture `cfg`.
+pub fn build_checkpoint(stem: &Path, cfg: &ForecasterConfig) -> Result<ModelProto> {
+    let wp = stem.with_extension("safetensors");
+    let weights = candle_core::safetensors::load(&wp, &Device::Cpu)
+        .with_context(|| format!("reading {}", wp.display()))?;
+    build(weights, cfg)
+}
+
 /// Export `<stem>.safetensors` + `<stem>.json` to `out` (ONNX protobuf).
 pub fn export_checkpoint(stem: &Path, out: &Path) -> Result<ModelProto> {
     let jp = stem.with_extension("json");
@@ -392,10 +400,7 @@ pub fn export_checkpoint(stem: &Path, out: &Path) -> Result<ModelProto> {
         &std::fs::read(&jp).with_context(|| format!("reading {}", jp.display()))?,
     )
     .with_context(|| format!("parsing {}", jp.display()))?;
-    let wp = stem.with_extension("safetensors");
-    let weights = candle_core::safetensors::load(&wp, &Device::Cpu)
-        .with_context(|| format!("reading {}", wp.display()))?;
-    let model = build(weights, &meta.model)?;
+    let model = build_checkpoint(stem, &meta.model)?;
     std::fs::write(out, model.encode_to_vec())
         .with_context(|| format!("writing {}", out.display()))?;
     Ok(model)

@@ -95,6 +95,17 @@ impl OrtBackend {
 }
 
 impl OrtBackend {
+    /// Export checkpoint `<stem>` (architecture `cfg`) in memory and open a session on it.
+    pub fn from_checkpoint(
+        stem: &Path,
+        cfg: ForecasterConfig,
+        threads: usize,
+    ) -> Result<OrtBackend> {
+        use prost::Message;
+        let model = crate::export::build_checkpoint(stem, &cfg)?.encode_to_vec();
+        OrtBackend::from_bytes(&model, cfg, threads)
+    }
+
     /// A session over an ONNX model held in memory (e.g. exported at start-up).
     pub fn from_bytes(model: &[u8], cfg: ForecasterConfig, threads: usize) -> Result<OrtBackend> {
         let env = environment()?;

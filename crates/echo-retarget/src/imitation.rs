@@ -3,6 +3,8 @@
 //! plan that starts at the robot's measured state — the safety service then limits how fast the
 //! robot gets there.
 
+use std::sync::Arc;
+
 use echo_motion::skeleton::{j, NUM_JOINTS};
 use echo_msgs::{ControlMode, Header, HumanSkeletons, JointState, PlanPoint, RobotPlan};
 use echo_robot::RobotModel;
@@ -96,7 +98,7 @@ impl ImitationError {
 
 /// Partner skeletons → imitation plans.
 pub struct Imitator {
-    retargeter: Retargeter,
+    retargeter: Arc<Retargeter>,
     model: RobotModel,
     cfg: ImitationConfig,
     state: Option<JointState>,
@@ -104,7 +106,7 @@ pub struct Imitator {
 
 impl Imitator {
     /// With a trained retargeter.
-    pub fn new(retargeter: Retargeter, model: RobotModel, cfg: ImitationConfig) -> Imitator {
+    pub fn new(retargeter: Arc<Retargeter>, model: RobotModel, cfg: ImitationConfig) -> Imitator {
         Imitator {
             retargeter,
             model,

@@ -99,21 +99,28 @@ pub fn load_backend(
         .unwrap_or_else(|| "forecaster".into());
     let backend: Box<dyn Backend> = match args.backend.as_str() {
         "candle" => Box::new(CandleBackend::new(ck, dev)),
-        "onnx" => {
-            use prost::Message;
-            let weights =
-                candle_core::safetensors::load(args.model.with_extension("safetensors"), &dev)?;
-            let model = echo_onnx::export::build(weights, &ck.meta.model)?.encode_to_vec();
-            Box::new(echo_onnx::OrtBackend::from_bytes(
-                &model,
-                ck.meta.model.clone(),
-                0,
-            )?)
-        }
+        "onnx" => Box::new(echo_onnx::OrtBackend::from_checkpoint(
+            &args.model,
+            ck.meta.model.clone(),
+            0,
+        )?),
         "zero-velocity" => Box::new(ZeroVelocityBackend::new(ck.meta.model.clone())),
         other => anyhow::bail!("unknown backend '{other}' (candle, onnx, zero-velocity)"),
     };
     Ok((backend, text, name))
+}
+
+/// An inbox as a stream of inputs tagged with the robot they belong to.
+fn tagged<M: Send + 'static>(
+    inbox: echo_bus::Inbox<M>,
+    robot: String,
+    wrap: fn(String, Received<M>) -> Input,
+) -> futures::stream::BoxStream<'static, Input> {
+    futures::stream::unfold(inbox, move |ib| {
+        let robot = robot.clone();
+        async move { ib.recv().await.map(|m| (wrap(robot, m), ib)) }
+    })
+    .boxed()
 }
 
 /// Open the bus, wire inputs and outputs, and run until `stop` triggers.
@@ -151,30 +158,9 @@ pub async fn serve(args: Args, stop: Shutdown) -> Result<()> {
         let sk = bus.subscribe(&topics::humans(r)).await?;
         let js = bus.subscribe(&topics::robot_state(r)).await?;
         let pr = bus.subscribe(&topics::prompt(r)).await?;
-        let n = name.clone();
-        streams.push(
-            futures::stream::unfold(sk, move |ib| {
-                let n = n.clone();
-                async move { ib.recv().await.map(|m| (Input::Skeletons(n, m), ib)) }
-            })
-            .boxed(),
-        );
-        let n = name.clone();
-        streams.push(
-            futures::stream::unfold(js, move |ib| {
-                let n = n.clone();
-                async move { ib.recv().await.map(|m| (Input::JointState(n, m), ib)) }
-            })
-            .boxed(),
-        );
-        let n = name.clone();
-        streams.push(
-            futures::stream::unfold(pr, move |ib| {
-                let n = n.clone();
-                async move { ib.recv().await.map(|m| (Input::Prompt(n, m), ib)) }
-            })
-            .boxed(),
-        );
+        streams.push(tagged(sk, name.clone(), Input::Skeletons));
+        streams.push(tagged(js, name.clone(), Input::JointState));
+        streams.push(tagged(pr, name.clone(), Input::Prompt));
         publishers.push((name, bus.publisher(&topics::forecast(r)).await?));
         let key = keys::alive(r, SERVICE);
         tokens.push(

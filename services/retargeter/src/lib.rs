@@ -130,19 +130,19 @@ pub async fn serve(args: Args, stop: Shutdown) -> Result<()> {
         }
         None => RobotModel::tiago_dual(),
     };
-    let load = || {
+    // One network serves both the imitation loop and the batch queryable.
+    let batch_retargeter = std::sync::Arc::new(
         Retargeter::load(&args.model, model.clone())
-            .with_context(|| format!("loading the retargeter {}", args.model.display()))
-    };
+            .with_context(|| format!("loading the retargeter {}", args.model.display()))?,
+    );
     let imitator = Imitator::new(
-        load()?,
+        batch_retargeter.clone(),
         model.clone(),
         ImitationConfig {
             mirror: !args.no_mirror,
             ..Default::default()
         },
     );
-    let batch_retargeter = std::sync::Arc::new(load()?);
     let bus = Bus::open(&args.bus, SERVICE).await?;
     let robot = bus.robot().clone();
     let sk = bus.subscribe(&topics::humans(&robot)).await?;

@@ -80,7 +80,11 @@ fn prompt(mode: ControlMode) -> InteractionIntent {
 #[tokio::test]
 async fn plans_only_in_imitation_mode_starting_at_the_measured_state() {
     let model = RobotModel::tiago_dual();
-    let imitator = Imitator::new(shipped(), model.clone(), ImitationConfig::default());
+    let imitator = Imitator::new(
+        std::sync::Arc::new(shipped()),
+        model.clone(),
+        ImitationConfig::default(),
+    );
     let inputs = vec![
         Input::Skeletons(rx(skeletons(0))), // no state yet, forecast mode: ignored
         Input::Prompt(rx(prompt(ControlMode::Imitation))),

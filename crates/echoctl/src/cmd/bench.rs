@@ -58,15 +58,12 @@ fn report(name: &str, mut v: Vec<f64>) {
 
 fn forecaster(stem: &std::path::Path, samples: usize) -> Result<()> {
     use echo_models::{Backend, CandleBackend, Checkpoint};
-    use prost::Message;
     let dev = candle_core::Device::Cpu;
     let mut ck = Checkpoint::load(stem, &dev)?;
     let cfg = ck.meta.model.clone();
     let text = ck.text.take();
-    let weights = candle_core::safetensors::load(stem.with_extension("safetensors"), &dev)?;
-    let onnx = echo_onnx::export::build(weights, &cfg)?.encode_to_vec();
     let mut backends: Vec<Box<dyn Backend>> = vec![Box::new(CandleBackend::new(ck, dev))];
-    match echo_onnx::OrtBackend::from_bytes(&onnx, cfg.clone(), 0) {
+    match echo_onnx::OrtBackend::from_checkpoint(stem, cfg.clone(), 0) {
         Ok(b) => backends.push(Box::new(b)),
         Err(e) => println!("onnxruntime: not measured ({e})"),
     }

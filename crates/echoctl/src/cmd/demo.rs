@@ -653,7 +653,7 @@ async fn subscribe_all(
                     o.forecasts.on_forecast(v);
                 }
             }
-            if short == "robot/state" {
+            if short == "robot/state" && o.hri {
                 if let Some(v) = &v {
                     o.reach.on_state(v);
                 }
