@@ -1,6 +1,6 @@
 //! `echoctl`: Echo's command-line tool.
 //!
-//! Lifecycle: `demo`. Monitoring: `monitor`, `list`. Stand-ins: `mock-perception`, `mock-robot`.
+//! Lifecycle: `demo`. Monitoring: `monitor`, `list`, `record`, `replay`. Stand-ins: `mock-perception`, `mock-robot`.
 //! Models and data: `data`, `train`, `eval`, `export`. Measurement: `bench`. Network: `router`.
 
 use anyhow::Result;
@@ -40,6 +40,12 @@ enum Command {
     /// Export a checkpoint for another runtime (onnx).
     #[command(display_order = 43)]
     Export(cmd::export::Args),
+    /// Record bus traffic to an MCAP file (receive times kept).
+    #[command(display_order = 12)]
+    Record(cmd::record::RecordArgs),
+    /// Play an MCAP recording back onto the bus at its original rate (or faster).
+    #[command(display_order = 13)]
+    Replay(cmd::record::ReplayArgs),
     /// Run a Zenoh router (the same engine as zenohd, from this binary).
     #[command(display_order = 50)]
     Router(cmd::router::Args),
@@ -78,6 +84,14 @@ async fn main() -> Result<()> {
         Command::Eval(a) => cmd::eval::run(a),
         Command::Train(a) => cmd::train::run(a),
         Command::Export(a) => cmd::export::run(a),
+        Command::Record(a) => {
+            telemetry::init();
+            cmd::record::record(a).await
+        }
+        Command::Replay(a) => {
+            telemetry::init();
+            cmd::record::replay(a).await
+        }
         Command::Router(a) => {
             telemetry::init();
             cmd::router::run(a).await

@@ -9,5 +9,6 @@ pub mod list;
 pub mod mock_perception;
 pub mod mock_robot;
 pub mod monitor;
+pub mod record;
 pub mod router;
 pub mod train;
