@@ -127,6 +127,11 @@ impl Harness {
             .is_some_and(|(_, c)| matches!(c.try_wait(), Ok(None)))
     }
 
+    /// Directory of the processes' logs (`<label>.log`).
+    pub fn log_dir(&self) -> &Path {
+        &self.log_dir
+    }
+
     /// The last lines of a service's log.
     pub fn log_tail(&self, label: &str) -> String {
         let text =

@@ -49,7 +49,7 @@ impl Bus {
     /// Open a session for `service` with `args`.
     pub async fn open(args: &BusArgs, service: &str) -> Result<Bus> {
         let robot = args.robot_id()?;
-        let session = zenoh::open(args.zenoh_config()?)
+        let session = zenoh::open(args.for_service(service).zenoh_config()?)
             .await
             .map_err(|e| anyhow!("opening Zenoh session: {e}"))?;
         let source = format!(

@@ -29,6 +29,13 @@ pub struct BusArgs {
     /// Disable multicast scouting (use explicit endpoints; recommended in containers and CI).
     #[arg(long, env = "ECHO_NO_MULTICAST")]
     pub no_multicast_scouting: bool,
+    /// Mutual TLS: a directory made by deploy/tls/make-certs (ca.pem, <name>.pem, <name>.key).
+    /// Plain TCP is then refused; endpoints are tls/<host>:<port>.
+    #[arg(long = "tls-dir", env = "ECHO_TLS_DIR")]
+    pub tls_dir: Option<std::path::PathBuf>,
+    /// Identity (certificate common name) inside `--tls-dir`; default: the service's name.
+    #[arg(long = "tls-name", env = "ECHO_TLS_NAME")]
+    pub tls_name: Option<String>,
 }
 
 impl BusArgs {
@@ -48,6 +55,8 @@ impl BusArgs {
                 .map(|p| format!("tcp/127.0.0.1:{p}"))
                 .collect(),
             no_multicast_scouting: true,
+            tls_dir: None,
+            tls_name: None,
         }
     }
 
@@ -73,7 +82,24 @@ impl BusArgs {
         if self.no_multicast_scouting {
             v.push("--no-multicast-scouting".into());
         }
+        if let Some(d) = &self.tls_dir {
+            v.push("--tls-dir".into());
+            v.push(d.display().to_string());
+        }
+        if let Some(n) = &self.tls_name {
+            v.push("--tls-name".into());
+            v.push(n.clone());
+        }
         v
+    }
+
+    /// These flags with `service` as the TLS identity unless `--tls-name` names one.
+    pub fn for_service(&self, service: &str) -> BusArgs {
+        let mut a = self.clone();
+        if a.tls_name.is_none() {
+            a.tls_name = Some(service.to_string());
+        }
+        a
     }
 
     /// The validated robot id.
@@ -108,6 +134,35 @@ impl BusArgs {
         }
         if self.no_multicast_scouting {
             set(&mut cfg, "scouting/multicast/enabled", "false".into())?;
+        }
+        if let Some(dir) = &self.tls_dir {
+            let name = self
+                .tls_name
+                .as_deref()
+                .context("--tls-dir needs --tls-name (the certificate's common name)")?;
+            let file = |f: String| -> Result<String> {
+                let p = dir.join(&f);
+                anyhow::ensure!(
+                    p.is_file(),
+                    "TLS: {} is missing (make it with deploy/tls/make-certs)",
+                    p.display()
+                );
+                Ok(serde_json::to_string(&p.display().to_string())?)
+            };
+            let (ca, cert, key) = (
+                file("ca.pem".into())?,
+                file(format!("{name}.pem"))?,
+                file(format!("{name}.key"))?,
+            );
+            let tls = "transport/link/tls";
+            set(&mut cfg, &format!("{tls}/root_ca_certificate"), ca)?;
+            set(&mut cfg, &format!("{tls}/listen_certificate"), cert.clone())?;
+            set(&mut cfg, &format!("{tls}/listen_private_key"), key.clone())?;
+            set(&mut cfg, &format!("{tls}/connect_certificate"), cert)?;
+            set(&mut cfg, &format!("{tls}/connect_private_key"), key)?;
+            set(&mut cfg, &format!("{tls}/enable_mtls"), "true".into())?;
+            // Only TLS links: a plain TCP peer cannot join.
+            set(&mut cfg, "transport/link/protocols", r#"["tls"]"#.into())?;
         }
         Ok(cfg)
     }
@@ -168,6 +223,30 @@ mod tests {
         assert_eq!(cfg.get_json("scouting/multicast/enabled").unwrap(), "false");
         let cli = a.to_cli();
         assert!(cli.contains(&"tcp/127.0.0.1:7002,tcp/127.0.0.1:7003".to_string()));
+    }
+
+    #[test]
+    fn tls_needs_its_files_and_forbids_plain_tcp() {
+        let dir = std::env::temp_dir().join(format!("echo-tls-cfg-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut a = BusArgs::loopback("r1", &[], &[]).for_service("safety");
+        a.tls_dir = Some(dir.clone());
+        let e = a.zenoh_config().unwrap_err().to_string();
+        assert!(e.contains("ca.pem") && e.contains("make-certs"), "{e}");
+        for f in ["ca.pem", "safety.pem", "safety.key"] {
+            std::fs::write(dir.join(f), "x").unwrap();
+        }
+        let cfg = a.zenoh_config().unwrap();
+        assert_eq!(
+            cfg.get_json("transport/link/protocols").unwrap(),
+            r#"["tls"]"#
+        );
+        assert!(cfg
+            .get_json("transport/link/tls/connect_certificate")
+            .unwrap()
+            .contains("safety.pem"));
+        assert!(a.to_cli().contains(&"--tls-name".to_string()));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

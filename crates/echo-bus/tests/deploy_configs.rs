@@ -4,7 +4,7 @@ use echo_bus::BusArgs;
 
 #[test]
 fn shipped_configs_load() {
-    for name in ["robot", "edge", "router"] {
+    for name in ["robot", "edge", "router", "router-secure"] {
         let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join(format!("../../deploy/zenoh/{name}.json5"));
         let args = BusArgs {

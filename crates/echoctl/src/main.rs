@@ -93,7 +93,7 @@ async fn main() -> Result<()> {
             cmd::record::replay(a).await
         }
         Command::Router(a) => {
-            telemetry::init();
+            let _denied = telemetry::init_with_access_log();
             cmd::router::run(a).await
         }
         Command::Bench(a) => {

@@ -18,10 +18,14 @@ pub async fn run(mut args: Args) -> Result<()> {
     if args.bus.listen.is_empty() && args.bus.zenoh_config.is_none() {
         args.bus.listen = vec!["tcp/0.0.0.0:7447".into()];
     }
-    let session = zenoh::open(args.bus.zenoh_config()?)
+    let cfg = args.bus.for_service("router").zenoh_config()?;
+    let acl = cfg
+        .get_json("access_control/enabled")
+        .is_ok_and(|v| v == "true");
+    let session = zenoh::open(cfg)
         .await
         .map_err(|e| anyhow!("starting the router: {e}"))?;
-    tracing::info!(zid = %session.zid(), listen = ?args.bus.listen, "router running");
+    tracing::info!(zid = %session.zid(), listen = ?args.bus.listen, access_control = acl, "router running");
     echo_bus::shutdown::signal().await;
     session
         .close()
