@@ -119,6 +119,31 @@ impl Harness {
         Ok(())
     }
 
+    /// Process id of a started process.
+    pub fn pid(&self, label: &str) -> Option<u32> {
+        self.children
+            .iter()
+            .find(|(l, _)| l == label)
+            .map(|(_, c)| c.id())
+    }
+
+    /// Kill a process at once (SIGKILL: a crash, no clean shutdown).
+    pub fn kill(&mut self, label: &str) {
+        if let Some(pos) = self.children.iter().position(|(l, _)| l == label) {
+            let (_, mut child) = self.children.remove(pos);
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+    }
+
+    /// Exit status of a process that has ended (None while it runs).
+    pub fn exit_status(&mut self, label: &str) -> Option<std::process::ExitStatus> {
+        self.children
+            .iter_mut()
+            .find(|(l, _)| l == label)
+            .and_then(|(_, c)| c.try_wait().ok().flatten())
+    }
+
     /// Whether a started process is still running.
     pub fn is_running(&mut self, label: &str) -> bool {
         self.children

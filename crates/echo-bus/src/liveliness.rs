@@ -74,6 +74,11 @@ impl AliveWatch {
             .collect()
     }
 
+    /// A future that completes at the next change of the live set.
+    pub fn changed(&self) -> impl std::future::Future<Output = ()> + '_ {
+        self.changed.notified()
+    }
+
     /// Wait until every one of `services` of `robot` is alive, or `timeout` passes.
     /// Returns the services still missing.
     pub async fn wait_for(&self, robot: &str, services: &[&str], timeout: Duration) -> Vec<String> {

@@ -1,5 +1,6 @@
 //! Online forecasting for the forecaster service, independent of the network:
 //!
+//! - [`failover`]: which of a primary and its standbys serves a robot (lowest live rank);
 //! - [`history`]: a per-robot ring buffer of both agents at the model rate; short gaps are
 //!   filled by interpolation (and counted), long gaps or reordered frames reset or are rejected;
 //! - [`proxy`]: the robot as the second agent — its kinematic points (FK from the URDF) laid on
@@ -7,6 +8,7 @@
 //! - [`server`]: agent pairing per robot, prompts (embedded once, cached), and one batched
 //!   forward pass for every robot whose history advanced, producing [`echo_msgs::Forecast`]s.
 
+pub mod failover;
 pub mod history;
 pub mod proxy;
 pub mod server;

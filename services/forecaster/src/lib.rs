@@ -4,13 +4,17 @@
 //! (InteractionIntent). Output: `forecast` (Forecast) per robot; `status/forecaster`.
 //! Robots whose frames arrive within `--batch-window-ms` of each other share one forward pass.
 
+use std::collections::HashMap;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
 use echo_bus::keys::{self, RobotId};
 use echo_bus::shutdown::Shutdown;
 use echo_bus::{topics, Bus, BusArgs, Received, Stats};
+use echo_forecast::failover;
 use echo_forecast::server::Counters;
 use echo_forecast::{ForecastServer, ServerConfig};
 use echo_models::{Backend, CandleBackend, Checkpoint, ZeroVelocityBackend};
@@ -50,6 +54,10 @@ pub struct Args {
     /// Robot description (URDF) for the robot stand-in; the embedded TIAGo++ when absent.
     #[arg(long, env = "ECHO_URDF")]
     pub urdf: Option<PathBuf>,
+    /// Failover rank: 0 = primary; a standby of rank n publishes for a robot only while no
+    /// instance of lower rank is alive for it (see echo_forecast::failover).
+    #[arg(long, env = "ECHO_FORECAST_RANK", default_value_t = 0)]
+    pub rank: u32,
 }
 
 /// One input event, tagged with the robot it belongs to.
@@ -73,13 +81,75 @@ pub trait Output {
     ) -> impl std::future::Future<Output = Result<()>> + Send;
 }
 
-struct BusOutput(Vec<(String, echo_bus::Publisher<Forecast>)>);
+/// Per robot: its forecast publisher and whether this instance is active for it.
+struct BusOutput {
+    robots: Vec<(String, echo_bus::Publisher<Forecast>, Arc<AtomicBool>)>,
+    stats: Arc<Stats>,
+}
 
 impl Output for BusOutput {
     async fn forecast(&mut self, robot: &str, msg: Forecast) -> Result<()> {
-        match self.0.iter().find(|(r, _)| r == robot) {
-            Some((_, p)) => p.put(msg).await,
+        match self.robots.iter().find(|(r, _, _)| r == robot) {
+            Some((_, p, active)) if active.load(Ordering::Relaxed) => p.put(msg).await,
+            Some(_) => {
+                // Hot standby: the forecast is computed but another instance publishes.
+                self.stats.dropped(edges::STANDBY, 1);
+                Ok(())
+            }
             None => Ok(()),
+        }
+    }
+}
+
+/// Keep each robot's active flag and the plain `forecaster` token in line with the live ranks
+/// (see [`echo_forecast::failover`]) until `stop`.
+async fn follow_failover(
+    bus: Arc<Bus>,
+    watch: echo_bus::liveliness::AliveWatch,
+    rank: u32,
+    robots: Vec<(RobotId, Arc<AtomicBool>)>,
+    mut seen_at_start: Vec<(String, String)>,
+    mut stop: Shutdown,
+) {
+    let mut tokens: HashMap<String, zenoh::liveliness::LivelinessToken> = HashMap::new();
+    loop {
+        let changed = watch.changed();
+        let mut alive = watch.snapshot();
+        // The first decision also counts what the start-up query saw, in case the watch's
+        // history has not arrived yet.
+        alive.append(&mut seen_at_start);
+        for (robot, active) in &robots {
+            let ranks: Vec<u32> = alive
+                .iter()
+                .filter(|(r, _)| r == robot.as_str())
+                .filter_map(|(_, s)| failover::parse_instance(SERVICE, s))
+                .collect();
+            let want = failover::is_active(rank, &ranks);
+            if want == active.load(Ordering::Relaxed) {
+                continue;
+            }
+            if want {
+                match bus
+                    .session()
+                    .liveliness()
+                    .declare_token(keys::alive(robot, SERVICE))
+                    .await
+                {
+                    Ok(t) => {
+                        tokens.insert(robot.to_string(), t);
+                    }
+                    Err(e) => tracing::warn!(%robot, "declaring the active token: {e}"),
+                }
+                tracing::warn!(%robot, rank, live_ranks = ?ranks, "active: serving forecasts");
+            } else {
+                tokens.remove(robot.as_str());
+                tracing::warn!(%robot, rank, live_ranks = ?ranks, "standing by: a lower rank is alive");
+            }
+            active.store(want, Ordering::Relaxed);
+        }
+        tokio::select! {
+            _ = changed => {}
+            _ = stop.wait() => break,
         }
     }
 }
@@ -142,7 +212,7 @@ pub async fn serve(args: Args, stop: Shutdown) -> Result<()> {
     let backend_name = backend.name();
     let server = ForecastServer::new(cfg, backend, text, &model_name, robot_model)?;
 
-    let bus = Bus::open(&args.bus, SERVICE).await?;
+    let bus = Arc::new(Bus::open(&args.bus, SERVICE).await?);
     let mut robots: Vec<RobotId> = vec![bus.robot().clone()];
     for r in &args.robots {
         let id = RobotId::new(r).map_err(|e| anyhow::anyhow!("--robots: {e}"))?;
@@ -150,8 +220,25 @@ pub async fn serve(args: Args, stop: Shutdown) -> Result<()> {
             robots.push(id);
         }
     }
+    // Ranks are unique per robot: refuse to start on a taken one.
+    let instance = failover::instance_name(SERVICE, args.rank);
+    let watch = bus.watch_alive(&keys::alive_fleet()).await?;
+    let mut seen = vec![];
+    for r in &robots {
+        let now = bus
+            .alive_now(&keys::alive_all(r), Duration::from_millis(800))
+            .await?;
+        let taken = now.iter().any(|(_, s)| *s == instance);
+        seen.extend(now);
+        anyhow::ensure!(
+            !taken,
+            "robot {r} already has a forecaster of rank {} (use another --rank)",
+            args.rank
+        );
+    }
     let mut streams = vec![];
-    let mut publishers = vec![];
+    let mut outputs = vec![];
+    let mut flags = vec![];
     let mut tokens = vec![];
     for r in &robots {
         let name = r.as_str().to_string();
@@ -161,8 +248,14 @@ pub async fn serve(args: Args, stop: Shutdown) -> Result<()> {
         streams.push(tagged(sk, name.clone(), Input::Skeletons));
         streams.push(tagged(js, name.clone(), Input::JointState));
         streams.push(tagged(pr, name.clone(), Input::Prompt));
-        publishers.push((name, bus.publisher(&topics::forecast(r)).await?));
-        let key = keys::alive(r, SERVICE);
+        let active = Arc::new(AtomicBool::new(false));
+        outputs.push((
+            name,
+            bus.publisher(&topics::forecast(r)).await?,
+            active.clone(),
+        ));
+        flags.push((r.clone(), active));
+        let key = keys::alive(r, &instance);
         tokens.push(
             bus.session()
                 .liveliness()
@@ -171,6 +264,14 @@ pub async fn serve(args: Args, stop: Shutdown) -> Result<()> {
                 .map_err(|e| anyhow::anyhow!("declaring liveliness token {key}: {e}"))?,
         );
     }
+    let failover_task = tokio::spawn(follow_failover(
+        bus.clone(),
+        watch,
+        args.rank,
+        flags,
+        seen,
+        stop.clone(),
+    ));
     let reporter = bus.spawn_status_reporter(Duration::from_secs(1), stop.clone());
     let mut stop_inputs = stop.clone();
     let inputs = futures::stream::select_all(streams)
@@ -183,6 +284,7 @@ pub async fn serve(args: Args, stop: Shutdown) -> Result<()> {
     };
     stats.set_notes(vec![
         format!("model {model_name} on {backend_name}"),
+        format!("failover rank {} ({instance})", args.rank),
         what.into(),
         format!(
             "serving {}",
@@ -194,7 +296,10 @@ pub async fn serve(args: Args, stop: Shutdown) -> Result<()> {
         ),
     ]);
     tracing::info!(robots = robots.len(), model = %model_name, backend = %backend_name, "forecaster running");
-    let mut output = BusOutput(publishers);
+    let mut output = BusOutput {
+        robots: outputs,
+        stats: stats.clone(),
+    };
     run(
         Box::pin(inputs),
         &mut output,
@@ -205,8 +310,13 @@ pub async fn serve(args: Args, stop: Shutdown) -> Result<()> {
     )
     .await?;
     let _ = tokio::time::timeout(Duration::from_secs(2), reporter).await;
+    let _ = tokio::time::timeout(Duration::from_secs(2), failover_task).await;
     drop(tokens);
-    bus.close().await?;
+    drop(output);
+    match Arc::try_unwrap(bus) {
+        Ok(bus) => bus.close().await?,
+        Err(_) => tracing::warn!("bus still shared at shutdown; closing by drop"),
+    }
     tracing::info!("forecaster stopped");
     Ok(())
 }
@@ -219,6 +329,8 @@ pub mod edges {
     pub const PROMPT: &str = "prompt";
     /// Forecast output (model failures).
     pub const FORECAST: &str = "forecast";
+    /// Forecasts computed but not published: another instance is active.
+    pub const STANDBY: &str = "forecast_standby";
 }
 
 fn handle(server: &mut ForecastServer, stats: &Stats, input: Input) {
