@@ -2,6 +2,8 @@
 //! peer session on free loopback ports (explicit endpoints, no multicast), waits for their
 //! liveliness tokens, and always stops them (SIGTERM, then SIGKILL) when dropped.
 
+pub mod netns;
+
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
@@ -87,9 +89,29 @@ impl Harness {
 
     /// Start `program` with exactly `args` (no mesh flags), e.g. a router with its own endpoints.
     pub fn spawn_raw(&mut self, label: &str, program: &str, args: &[&str]) -> Result<()> {
+        let mut cmd = Command::new(binary(program)?);
+        cmd.args(args);
+        self.spawn_command(label, cmd)
+    }
+
+    /// Start `program` with exactly `args` inside the network namespace `netns`.
+    pub fn spawn_in(
+        &mut self,
+        label: &str,
+        netns: &str,
+        program: &str,
+        args: &[&str],
+    ) -> Result<()> {
+        let mut cmd = Command::new("ip");
+        cmd.args(["netns", "exec", netns])
+            .arg(binary(program)?)
+            .args(args);
+        self.spawn_command(label, cmd)
+    }
+
+    fn spawn_command(&mut self, label: &str, mut cmd: Command) -> Result<()> {
         let log = std::fs::File::create(self.log_dir.join(format!("{label}.log")))?;
-        let child = Command::new(binary(program)?)
-            .args(args)
+        let child = cmd
             .env("RUST_LOG", "info,zenoh=warn")
             .stdout(Stdio::from(log.try_clone()?))
             .stderr(Stdio::from(log))

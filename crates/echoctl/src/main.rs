@@ -55,6 +55,9 @@ enum Command {
     /// Publish a scripted person as pose-estimator keypoints at 15 Hz.
     #[command(display_order = 20)]
     MockPerception(cmd::mock_perception::Args),
+    /// Announce the interaction (text, type, control mode) to a robot.
+    #[command(display_order = 22)]
+    Prompt(cmd::prompt::Args),
     /// Simulate the TIAGo++ controllers: follow commands, publish joint states at 100 Hz.
     #[command(display_order = 21)]
     MockRobot(cmd::mock_robot::Args),
@@ -103,6 +106,10 @@ async fn main() -> Result<()> {
         Command::MockPerception(a) => {
             telemetry::init();
             cmd::mock_perception::serve(a, shutdown::on_signals()).await
+        }
+        Command::Prompt(a) => {
+            telemetry::init();
+            cmd::prompt::serve(a, shutdown::on_signals()).await
         }
         Command::MockRobot(a) => {
             telemetry::init();

@@ -9,6 +9,7 @@ pub mod list;
 pub mod mock_perception;
 pub mod mock_robot;
 pub mod monitor;
+pub mod prompt;
 pub mod record;
 pub mod router;
 pub mod train;
