@@ -118,7 +118,7 @@ async fn services_survive_a_flood_of_bad_input() -> anyhow::Result<()> {
                     .map_err(|e| anyhow::anyhow!("{e}"))?;
                 sent += 1;
             }
-            if round % 10 == 0 {
+            if round.is_multiple_of(10) {
                 bus.session()
                     .put(k.as_str(), oversized.clone())
                     .await
@@ -126,7 +126,7 @@ async fn services_survive_a_flood_of_bad_input() -> anyhow::Result<()> {
                 sent += 1;
             }
         }
-        if round % 20 == 0 {
+        if round.is_multiple_of(20) {
             // Malformed batch queries to the retargeter's queryable.
             let replies = bus
                 .session()
