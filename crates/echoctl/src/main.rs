@@ -49,9 +49,12 @@ enum Command {
     /// Run a Zenoh router (the same engine as zenohd, from this binary).
     #[command(display_order = 50)]
     Router(cmd::router::Args),
-    /// Measure latency percentiles: `bridge` (per frame) or `bus` (loopback round trip).
+    /// Measure latency percentiles: `bridge`, `safety`, `forecaster`, `bus`, `e2e` (perception → command).
     #[command(display_order = 30)]
     Bench(cmd::bench::Args),
+    /// Several robots through the whole pipeline for minutes: memory, deadlines, latency.
+    #[command(display_order = 31)]
+    Soak(cmd::soak::Args),
     /// Publish a scripted person as pose-estimator keypoints at 15 Hz.
     #[command(display_order = 20)]
     MockPerception(cmd::mock_perception::Args),
@@ -102,6 +105,13 @@ async fn main() -> Result<()> {
         Command::Bench(a) => {
             telemetry::init();
             cmd::bench::run(a).await
+        }
+        Command::Soak(a) => {
+            if std::env::var_os("RUST_LOG").is_none() {
+                std::env::set_var("RUST_LOG", "warn");
+            }
+            telemetry::init();
+            cmd::soak::run_soak(a).await
         }
         Command::MockPerception(a) => {
             telemetry::init();

@@ -29,6 +29,18 @@ pub struct Args {
     /// Samples.
     #[arg(long, default_value_t = 2000)]
     pub samples: usize,
+    /// `e2e`: fleet sizes served by one forecaster.
+    #[arg(long, value_delimiter = ',', default_value = "1,4,16")]
+    pub robots: Vec<usize>,
+    /// `e2e`: measured seconds per fleet size.
+    #[arg(long, default_value_t = 15.0)]
+    pub seconds: f64,
+    /// `e2e`: the forecaster's checkpoint (an HRI model, so plans reach the safety service).
+    #[arg(long, default_value = "models/hri")]
+    pub e2e_model: std::path::PathBuf,
+    /// `e2e`: the forecaster's backend.
+    #[arg(long, default_value = "candle")]
+    pub backend: String,
 }
 
 /// Run the chosen benchmark and print a one-line summary per case.
@@ -41,8 +53,58 @@ pub async fn run(args: Args) -> Result<()> {
             Ok(())
         }
         "forecaster" => forecaster(&args.model, args.samples),
-        other => anyhow::bail!("unknown benchmark '{other}' (bridge, bus, safety, forecaster)"),
+        "e2e" => e2e(&args).await,
+        other => {
+            anyhow::bail!("unknown benchmark '{other}' (bridge, bus, safety, forecaster, e2e)")
+        }
     }
+}
+
+/// Perception → forecast → command across processes, for each fleet size.
+async fn e2e(args: &Args) -> Result<()> {
+    use super::fleet::{med_p99, run, FleetOptions};
+    println!(
+        "end to end over Zenoh on loopback, separate processes; model {} ({}); {} s per size; \
+         median / p99 in ms",
+        args.e2e_model.display(),
+        args.backend,
+        args.seconds
+    );
+    println!(
+        "| robots | frames | forecasts | perception→skeletons | perception→forecast | model inference | pipeline overhead | forecast→command | perception→command |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for &n in &args.robots {
+        let r = run(&FleetOptions {
+            robots: n.max(1),
+            with_safety: 1,
+            seconds: args.seconds,
+            model: args.e2e_model.clone(),
+            backend: args.backend.clone(),
+            log_dir: std::env::temp_dir().join(format!("echo-e2e-{}-{n}", std::process::id())),
+            rss_every: None,
+        })
+        .await?;
+        // Overhead per forecast: its latency minus its own inference time.
+        let overhead: Vec<f64> = r
+            .to_forecast_ms
+            .iter()
+            .zip(&r.inference_ms)
+            .map(|(l, i)| l - i)
+            .collect();
+        println!(
+            "| {n} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            r.frames_sent,
+            r.forecasts,
+            med_p99(&r.to_humans_ms),
+            med_p99(&r.to_forecast_ms),
+            med_p99(&r.inference_ms),
+            med_p99(&overhead),
+            med_p99(&r.forecast_to_command_ms),
+            med_p99(&r.to_command_ms),
+        );
+    }
+    Ok(())
 }
 
 fn report(name: &str, mut v: Vec<f64>) {

@@ -1,0 +1,446 @@
+//! A fleet under load, for `echoctl bench e2e` and `echoctl soak`: one perception bridge per
+//! robot, one forecaster serving every robot (batched), a safety service per robot that has one,
+//! all as separate processes with Zenoh peer sessions on loopback. This process plays the
+//! robots' cameras and joint encoders (pose-estimator frames at 15 Hz stamped when sent, joint
+//! states at 50 Hz) and times what comes back:
+//!
+//! - perception → skeletons: `humans` arrival − the frame's stamp (the bridge keeps it);
+//! - perception → forecast: `forecast` arrival − its stamp (the last observed frame's), and the
+//!   model's own `inference_ms` from the message, so overhead = latency − inference;
+//! - forecast → command: the safety service's next command after the forecast arrived (its
+//!   control loop runs at a fixed 50 Hz, so this includes waiting for the next cycle).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, Context, Result};
+use echo_bus::config::loopback_mesh;
+use echo_bus::stats::percentile_sorted;
+use echo_bus::{keys, topics, Bus, BusArgs, RobotId};
+use echo_msgs::{now_ns, ControlMode, Header, InteractionIntent, JointState, KeypointFrame};
+use echo_sim::perception::MockPerceptionConfig;
+use echo_sim::scenario::bridge_inputs;
+
+/// What to run.
+#[derive(Debug, Clone)]
+pub struct FleetOptions {
+    /// Robots served by the one forecaster.
+    pub robots: usize,
+    /// Robots (the first ones) that also get a safety service.
+    pub with_safety: usize,
+    /// Measured seconds (after warm-up).
+    pub seconds: f64,
+    /// Forecaster checkpoint (an HRI model makes robot plans, so commands follow).
+    pub model: PathBuf,
+    /// Forecaster backend (candle, onnx, zero-velocity).
+    pub backend: String,
+    /// Where the services' logs go.
+    pub log_dir: PathBuf,
+    /// Sample every child's resident memory this often (soak).
+    pub rss_every: Option<Duration>,
+}
+
+/// Latency samples (ms) and counts from one run.
+#[derive(Debug, Default, Clone, serde::Serialize)]
+pub struct FleetReport {
+    /// Robots served.
+    pub robots: usize,
+    /// Frames sent (all robots).
+    pub frames_sent: u64,
+    /// Forecasts received (all robots).
+    pub forecasts: u64,
+    /// Frames whose forecast did not arrive within the safety's plan deadline (200 ms).
+    pub missed_deadlines: u64,
+    /// Perception → skeletons, ms.
+    pub to_humans_ms: Vec<f64>,
+    /// Perception → forecast, ms.
+    pub to_forecast_ms: Vec<f64>,
+    /// Model inference per forecast, ms.
+    pub inference_ms: Vec<f64>,
+    /// Forecast → next command of the same robot, ms.
+    pub forecast_to_command_ms: Vec<f64>,
+    /// Perception → that command, ms.
+    pub to_command_ms: Vec<f64>,
+    /// Safety state changes to stopping/holding after warm-up, all robots.
+    pub safety_stops: u64,
+    /// Resident memory per process over time: (seconds since start, MiB).
+    pub rss_mib: BTreeMap<String, Vec<(f64, f64)>>,
+}
+
+/// Median and p99 of `v` ("–" when empty).
+pub fn med_p99(v: &[f64]) -> String {
+    if v.is_empty() {
+        return "–".into();
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    format!(
+        "{:.2} / {:.2}",
+        percentile_sorted(&s, 50.0),
+        percentile_sorted(&s, 99.0)
+    )
+}
+
+/// Resident memory of `pid`, MiB.
+pub fn rss_mib(pid: u32) -> Option<f64> {
+    let s = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let kb: f64 = s
+        .lines()
+        .find(|l| l.starts_with("VmRSS:"))?
+        .split_whitespace()
+        .nth(1)?
+        .parse()
+        .ok()?;
+    Some(kb / 1024.0)
+}
+
+struct Children(Vec<(String, std::process::Child)>);
+
+impl Drop for Children {
+    fn drop(&mut self) {
+        for (_, c) in &self.0 {
+            let _ = std::process::Command::new("kill")
+                .args(["-TERM", &c.id().to_string()])
+                .status();
+        }
+        let end = Instant::now() + Duration::from_secs(5);
+        for (_, c) in &mut self.0 {
+            while Instant::now() < end && matches!(c.try_wait(), Ok(None)) {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+fn spawn(
+    children: &mut Children,
+    exe_dir: &Path,
+    log_dir: &Path,
+    label: &str,
+    program: &str,
+    args: Vec<String>,
+) -> Result<()> {
+    let log = std::fs::File::create(log_dir.join(format!("{label}.log")))?;
+    let child = std::process::Command::new(exe_dir.join(program))
+        .args(args)
+        .env(
+            "RUST_LOG",
+            std::env::var("ECHO_SERVICE_LOG").unwrap_or_else(|_| "info,zenoh=warn".into()),
+        )
+        .stdout(log.try_clone()?)
+        .stderr(log)
+        .spawn()
+        .with_context(|| format!("starting {program} (build the workspace binaries first)"))?;
+    children.0.push((label.to_string(), child));
+    Ok(())
+}
+
+#[derive(serde::Deserialize)]
+struct Stamped {
+    header: StampOnly,
+    #[serde(default)]
+    inference_ms: Option<f64>,
+}
+
+#[derive(serde::Deserialize)]
+struct StampOnly {
+    stamp_ns: u64,
+}
+
+#[derive(Default)]
+struct Arrivals {
+    humans: Vec<f64>,
+    forecasts: Vec<(usize, u64, u64, f64)>,
+    commands: Vec<(usize, u64)>,
+    stops: u64,
+}
+
+/// Start the fleet, load it for `seconds` after a warm-up, and return what was measured.
+pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
+    let exe_dir = std::env::current_exe()?
+        .parent()
+        .map(Path::to_path_buf)
+        .ok_or_else(|| anyhow!("cannot locate the echoctl binary's directory"))?;
+    std::fs::create_dir_all(&opts.log_dir)?;
+    let ids: Vec<RobotId> = (0..opts.robots)
+        .map(|i| RobotId::new(&format!("fleet{i:02}")))
+        .collect::<std::result::Result<_, _>>()?;
+    let n_proc = opts.robots + 1 + opts.with_safety.min(opts.robots);
+    let mesh = loopback_mesh(ids[0].as_str(), n_proc + 1);
+    let net = |slot: usize, robot: &RobotId| -> Vec<String> {
+        let mut a: BusArgs = mesh[slot].clone();
+        a.robot = robot.to_string();
+        a.to_cli()
+    };
+    let mut children = Children(vec![]);
+    let mut slot = 1;
+    for r in &ids {
+        spawn(
+            &mut children,
+            &exe_dir,
+            &opts.log_dir,
+            &format!("bridge-{r}"),
+            "perception-bridge",
+            net(slot, r),
+        )?;
+        slot += 1;
+    }
+    for r in ids.iter().take(opts.with_safety) {
+        spawn(
+            &mut children,
+            &exe_dir,
+            &opts.log_dir,
+            &format!("safety-{r}"),
+            "safety",
+            net(slot, r),
+        )?;
+        slot += 1;
+    }
+    let mut fc = net(slot, &ids[0]);
+    fc.extend([
+        "--model".into(),
+        opts.model.display().to_string(),
+        "--backend".into(),
+        opts.backend.clone(),
+    ]);
+    if ids.len() > 1 {
+        fc.push("--robots".into());
+        fc.push(
+            ids[1..]
+                .iter()
+                .map(|r| r.as_str())
+                .collect::<Vec<_>>()
+                .join(","),
+        );
+    }
+    spawn(
+        &mut children,
+        &exe_dir,
+        &opts.log_dir,
+        "forecaster",
+        "forecaster",
+        fc,
+    )?;
+
+    let mut own = mesh[0].clone();
+    own.robot = ids[0].to_string();
+    let bus = Bus::open(&own, "fleet-load").await?;
+    let watch = bus.watch_alive(&keys::alive_fleet()).await?;
+    for r in &ids {
+        let mut want = vec!["perception-bridge", "forecaster"];
+        if ids.iter().position(|x| x == r).unwrap_or(0) < opts.with_safety {
+            want.push("safety");
+        }
+        let missing = watch
+            .wait_for(r.as_str(), &want, Duration::from_secs(120))
+            .await;
+        anyhow::ensure!(
+            missing.is_empty(),
+            "{r}: not alive: {missing:?} (logs in {})",
+            opts.log_dir.display()
+        );
+    }
+
+    // What comes back, timed in the subscriber callbacks.
+    let arrivals = Arc::new(Mutex::new(Arrivals::default()));
+    let measuring = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let mut subs = vec![];
+    for (i, r) in ids.iter().enumerate() {
+        let (a, m) = (arrivals.clone(), measuring.clone());
+        subs.push(
+            bus.session()
+                .declare_subscriber(keys::humans(r))
+                .callback(move |s| {
+                    let t = now_ns();
+                    if !m.load(std::sync::atomic::Ordering::Relaxed) {
+                        return;
+                    }
+                    if let Ok(st) = serde_json::from_slice::<Stamped>(&s.payload().to_bytes()) {
+                        let mut a = a.lock().unwrap_or_else(|e| e.into_inner());
+                        a.humans
+                            .push(t.saturating_sub(st.header.stamp_ns) as f64 / 1e6);
+                    }
+                })
+                .await
+                .map_err(|e| anyhow!("{e}"))?,
+        );
+        let (a, m) = (arrivals.clone(), measuring.clone());
+        subs.push(
+            bus.session()
+                .declare_subscriber(keys::forecast(r))
+                .callback(move |s| {
+                    let t = now_ns();
+                    if !m.load(std::sync::atomic::Ordering::Relaxed) {
+                        return;
+                    }
+                    if let Ok(st) = serde_json::from_slice::<Stamped>(&s.payload().to_bytes()) {
+                        let mut a = a.lock().unwrap_or_else(|e| e.into_inner());
+                        a.forecasts.push((
+                            i,
+                            st.header.stamp_ns,
+                            t,
+                            st.inference_ms.unwrap_or(f64::NAN),
+                        ));
+                    }
+                })
+                .await
+                .map_err(|e| anyhow!("{e}"))?,
+        );
+        if i < opts.with_safety {
+            let (a, m) = (arrivals.clone(), measuring.clone());
+            subs.push(
+                bus.session()
+                    .declare_subscriber(keys::command(r))
+                    .callback(move |_| {
+                        let t = now_ns();
+                        if m.load(std::sync::atomic::Ordering::Relaxed) {
+                            a.lock()
+                                .unwrap_or_else(|e| e.into_inner())
+                                .commands
+                                .push((i, t));
+                        }
+                    })
+                    .await
+                    .map_err(|e| anyhow!("{e}"))?,
+            );
+            let (a, m) = (arrivals.clone(), measuring.clone());
+            subs.push(
+                bus.session()
+                    .declare_subscriber(keys::safety_status(r))
+                    .callback(move |s| {
+                        if !m.load(std::sync::atomic::Ordering::Relaxed) {
+                            return;
+                        }
+                        let b = s.payload().to_bytes();
+                        if let Ok(st) = serde_json::from_slice::<echo_msgs::SafetyStatus>(&b) {
+                            if st.reasons.iter().any(|r| r.contains("no valid plan")) {
+                                a.lock().unwrap_or_else(|e| e.into_inner()).stops += 1;
+                            }
+                        }
+                    })
+                    .await
+                    .map_err(|e| anyhow!("{e}"))?,
+            );
+        }
+    }
+
+    // The robots' cameras and encoders.
+    let script = bridge_inputs(900, MockPerceptionConfig::default());
+    let mut raw_pubs = vec![];
+    let mut state_pubs = vec![];
+    let mut prompt_pubs = vec![];
+    for r in &ids {
+        raw_pubs.push(bus.publisher(&topics::perception_raw(r)).await?);
+        state_pubs.push(bus.publisher(&topics::robot_state(r)).await?);
+        prompt_pubs.push(bus.publisher(&topics::prompt(r)).await?);
+    }
+    let frame_of = |k: usize, r: &RobotId| -> (JointState, KeypointFrame) {
+        let (mut js, mut f) = script[k % script.len()].clone();
+        js.header.robot_id = r.to_string();
+        f.header.robot_id = r.to_string();
+        (js, f)
+    };
+    let warmup = Duration::from_secs(4);
+    let started = Instant::now();
+    let total = warmup + Duration::from_secs_f64(opts.seconds);
+    let mut frame_tick = tokio::time::interval(Duration::from_secs_f64(1.0 / 15.0));
+    let mut state_tick = tokio::time::interval(Duration::from_millis(20));
+    let mut rss_tick = tokio::time::interval(opts.rss_every.unwrap_or(Duration::from_secs(3600)));
+    frame_tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    state_tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let mut report = FleetReport {
+        robots: opts.robots,
+        ..Default::default()
+    };
+    let mut k = 0usize;
+    let mut measuring_since = None;
+    while started.elapsed() < total {
+        if measuring_since.is_none() && started.elapsed() >= warmup {
+            measuring.store(true, std::sync::atomic::Ordering::Relaxed);
+            measuring_since = Some(now_ns());
+        }
+        tokio::select! {
+            _ = frame_tick.tick() => {
+                k += 1;
+                for (i, r) in ids.iter().enumerate() {
+                    let (_, mut f) = frame_of(k, r);
+                    f.header.stamp_ns = now_ns();
+                    raw_pubs[i].put(f).await?;
+                    if measuring_since.is_some() {
+                        report.frames_sent += 1;
+                    }
+                    if k % 15 == 1 {
+                        prompt_pubs[i].put(InteractionIntent {
+                            header: Header::new(r.as_str(), "", ""),
+                            text: "One person waves, and the other waves back.".into(),
+                            interaction: echo_msgs::Interaction::Wave,
+                            mode: ControlMode::Forecast,
+                        }).await?;
+                    }
+                }
+            }
+            _ = state_tick.tick() => {
+                for (i, r) in ids.iter().enumerate() {
+                    let (mut js, _) = frame_of(k, r);
+                    js.header.stamp_ns = now_ns();
+                    state_pubs[i].put(js).await?;
+                }
+            }
+            _ = rss_tick.tick(), if opts.rss_every.is_some() => {
+                let t = started.elapsed().as_secs_f64();
+                for (label, c) in &children.0 {
+                    if let Some(m) = rss_mib(c.id()) {
+                        report.rss_mib.entry(label.clone()).or_default().push((t, m));
+                    }
+                }
+            }
+        }
+    }
+    measuring.store(false, std::sync::atomic::Ordering::Relaxed);
+    for (label, c) in &mut children.0 {
+        if !matches!(c.try_wait(), Ok(None)) {
+            anyhow::bail!(
+                "{label} exited during the run (log in {})",
+                opts.log_dir.display()
+            );
+        }
+    }
+    drop(subs);
+    drop(children);
+    let a = std::mem::take(&mut *arrivals.lock().unwrap_or_else(|e| e.into_inner()));
+    report.to_humans_ms = a.humans;
+    report.forecasts = a.forecasts.len() as u64;
+    report.safety_stops = a.stops;
+    for (i, stamp, t, inf) in &a.forecasts {
+        let lat = t.saturating_sub(*stamp) as f64 / 1e6;
+        report.to_forecast_ms.push(lat);
+        if inf.is_finite() {
+            report.inference_ms.push(*inf);
+        }
+        if *i < opts.with_safety {
+            if let Some((_, tc)) = a.commands.iter().find(|(j, tc)| j == i && tc >= t) {
+                report.forecast_to_command_ms.push((tc - t) as f64 / 1e6);
+                report.to_command_ms.push((tc - stamp) as f64 / 1e6);
+            }
+        }
+    }
+    // A missed deadline: a robot went longer than the safety's plan deadline (200 ms) without a
+    // forecast, i.e. the safety service would have started to stop it.
+    let mut per_robot: Vec<Vec<u64>> = vec![vec![]; opts.robots];
+    for (i, _, t, _) in &a.forecasts {
+        per_robot[*i].push(*t);
+    }
+    report.missed_deadlines = per_robot
+        .iter_mut()
+        .map(|ts| {
+            ts.sort_unstable();
+            ts.windows(2).filter(|w| w[1] - w[0] > 200_000_000).count() as u64
+        })
+        .sum();
+    bus.close().await?;
+    Ok(report)
+}
