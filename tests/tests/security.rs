@@ -178,6 +178,43 @@ async fn only_certified_identities_connect_and_only_safety_commands() -> anyhow:
     tokio::time::sleep(Duration::from_millis(500)).await;
     assert_eq!(received.load(Ordering::Relaxed), before);
 
+    // The ROS 2 side (zenoh-bridge-ros2dds keys): the controllers take trajectories from the
+    // safety identity only.
+    let traj = format!("{ROBOT}/arm_left_controller/joint_trajectory");
+    let trajectories = Arc::new(AtomicU64::new(0));
+    let tr = trajectories.clone();
+    let _tsub = robot_if
+        .session()
+        .declare_subscriber(traj.clone())
+        .callback(move |_| {
+            tr.fetch_add(1, Ordering::Relaxed);
+        })
+        .await
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    for _ in 0..10 {
+        forecaster
+            .session()
+            .put(traj.clone(), vec![0u8; 8])
+            .await
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+    }
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    assert_eq!(trajectories.load(Ordering::Relaxed), 0);
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(5);
+    while trajectories.load(Ordering::Relaxed) == 0 && tokio::time::Instant::now() < deadline {
+        safety
+            .session()
+            .put(traj.clone(), vec![0u8; 8])
+            .await
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    assert!(
+        trajectories.load(Ordering::Relaxed) > 0,
+        "safety could not send a trajectory"
+    );
+
     let log = std::fs::read_to_string(h.log_dir().join("router.log"))?;
     assert!(
         log.lines().any(|l| l.contains("access denied")

@@ -1,6 +1,6 @@
 //! `echoctl`: Echo's command-line tool.
 //!
-//! Lifecycle: `demo`. Monitoring: `monitor`, `list`, `record`, `replay`. Stand-ins: `mock-perception`, `mock-robot`.
+//! Lifecycle: `demo`, `up`. Monitoring: `monitor`, `list`, `record`, `replay`. Stand-ins: `mock-perception`, `mock-robot`.
 //! Models and data: `data`, `train`, `eval`, `export`. Measurement: `bench`. Network: `router`.
 
 use anyhow::Result;
@@ -22,6 +22,9 @@ enum Command {
     /// Run the whole pipeline on loopback with the mock perception and the simulated robot.
     #[command(display_order = 1)]
     Demo(cmd::demo::Args),
+    /// Start and supervise what runs on this host (a profile from deploy/profiles/).
+    #[command(display_order = 2)]
+    Up(cmd::up::Args),
     /// Print live messages on a key expression (like `ros2 topic echo`).
     #[command(display_order = 10)]
     Monitor(cmd::monitor::Args),
@@ -77,6 +80,10 @@ async fn main() -> Result<()> {
             }
             telemetry::init();
             cmd::demo::run(a).await
+        }
+        Command::Up(a) => {
+            telemetry::init();
+            cmd::up::run(a).await
         }
         Command::Monitor(a) => {
             telemetry::init();

@@ -15,3 +15,4 @@ pub mod record;
 pub mod router;
 pub mod soak;
 pub mod train;
+pub mod up;

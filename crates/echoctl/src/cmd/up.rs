@@ -1,0 +1,334 @@
+//! `echoctl up --profile <name>`: start what runs on this host (a placement profile from
+//! deploy/profiles/) and keep it running — each service a child process, restarted with
+//! back-off when it exits, its log lines prefixed with its name on stderr (journald-friendly),
+//! all stopped on SIGINT/SIGTERM.
+//!
+//! Networking: as Zenoh clients of the router given with `--mode client --connect …` (robot +
+//! edge and fleet), or, in peer mode, a full mesh on loopback ports (single host).
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, Context, Result};
+use echo_bus::config::free_ports;
+use echo_bus::{shutdown, BusArgs};
+use tokio::io::AsyncBufReadExt;
+
+/// Options.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    /// Profile name (deploy/profiles/<name>.json) or path to a profile file.
+    #[arg(long)]
+    pub profile: String,
+    /// Network and identity, passed on to every service.
+    #[command(flatten)]
+    pub bus: BusArgs,
+    /// The deployment directory (profiles, Zenoh configs).
+    #[arg(long, env = "ECHO_DEPLOY_DIR", default_value = "deploy")]
+    pub deploy_dir: PathBuf,
+    /// Where the model checkpoints are.
+    #[arg(long, env = "ECHO_MODELS_DIR", default_value = "models")]
+    pub models: PathBuf,
+    /// Robots the forecaster serves besides --robot (comma-separated).
+    #[arg(long, env = "ECHO_SERVE", value_delimiter = ',')]
+    pub serve: Vec<String>,
+    /// Failover rank of this host's forecaster (0 = primary).
+    #[arg(long, env = "ECHO_FORECAST_RANK", default_value_t = 0)]
+    pub rank: u32,
+    /// Only print what would start.
+    #[arg(long)]
+    pub dry_run: bool,
+}
+
+/// One service of a profile.
+#[derive(Debug, Clone, serde::Deserialize)]
+pub struct ServiceSpec {
+    /// Name (log prefix, default TLS identity).
+    pub name: String,
+    /// Binary next to echoctl (a service, or echoctl itself with a verb in `args`).
+    pub program: String,
+    /// Arguments; `{models}`, `{deploy}`, `{serve}`, `{rank}`, `{robot}` are substituted, and a
+    /// flag whose value comes out empty is left out.
+    #[serde(default)]
+    pub args: Vec<String>,
+    /// TLS identity (certificate common name) when it is not the name.
+    #[serde(default)]
+    pub identity: Option<String>,
+}
+
+/// A placement profile.
+#[derive(Debug, Clone, serde::Deserialize)]
+pub struct Profile {
+    /// What it is for.
+    pub description: String,
+    /// What runs.
+    pub services: Vec<ServiceSpec>,
+}
+
+impl Profile {
+    /// Load `name` (a file path, or a name under `<deploy>/profiles/`).
+    pub fn load(name: &str, deploy: &Path) -> Result<Profile> {
+        let p = if name.ends_with(".json") || name.contains('/') {
+            PathBuf::from(name)
+        } else {
+            deploy.join("profiles").join(format!("{name}.json"))
+        };
+        let text = std::fs::read(&p).with_context(|| format!("reading profile {}", p.display()))?;
+        let profile: Profile =
+            serde_json::from_slice(&text).with_context(|| format!("parsing {}", p.display()))?;
+        anyhow::ensure!(!profile.services.is_empty(), "{}: no services", p.display());
+        Ok(profile)
+    }
+}
+
+/// The command line of `spec` with placeholders filled.
+pub fn expand(spec: &ServiceSpec, args: &Args) -> Vec<String> {
+    let serve = args.serve.join(",");
+    let fill = |a: &str| {
+        a.replace("{models}", &args.models.display().to_string())
+            .replace("{deploy}", &args.deploy_dir.display().to_string())
+            .replace("{serve}", &serve)
+            .replace("{rank}", &args.rank.to_string())
+            .replace("{robot}", &args.bus.robot)
+    };
+    let mut out: Vec<String> = vec![];
+    for a in &spec.args {
+        let v = fill(a);
+        if v.is_empty() {
+            // A flag without a value: drop the flag too.
+            if out.last().is_some_and(|f| f.starts_with("--")) {
+                out.pop();
+            }
+            continue;
+        }
+        out.push(v);
+    }
+    out
+}
+
+/// Network flags for each of `n` services.
+fn networks(bus: &BusArgs, n: usize) -> Vec<BusArgs> {
+    if bus.mode.as_deref() == Some("client") || bus.mode.as_deref() == Some("router") {
+        return vec![bus.clone(); n];
+    }
+    // Peer mode on one host: a full mesh on loopback, plus whatever the host connects to.
+    let ports = free_ports(n);
+    (0..n)
+        .map(|i| {
+            let mut a = bus.clone();
+            a.mode = Some("peer".into());
+            a.no_multicast_scouting = true;
+            a.listen.push(format!("tcp/127.0.0.1:{}", ports[i]));
+            for (j, p) in ports.iter().enumerate() {
+                if j != i {
+                    a.connect.push(format!("tcp/127.0.0.1:{p}"));
+                }
+            }
+            a
+        })
+        .collect()
+}
+
+/// The full argument list of service `spec` on network `net`.
+pub fn command_line(spec: &ServiceSpec, args: &Args, net: &BusArgs) -> Vec<String> {
+    let mut v = expand(spec, args);
+    let mut net = net.clone();
+    net.tls_name = Some(spec.identity.clone().unwrap_or_else(|| spec.name.clone()));
+    if spec.program == "echoctl" && v.first().is_some_and(|x| x == "router") {
+        // The router takes its endpoints from its own config; only identity passes on.
+        net = BusArgs {
+            robot: net.robot.clone(),
+            tls_dir: net.tls_dir.clone(),
+            tls_name: net.tls_name.clone(),
+            listen: net.listen.clone(),
+            ..Default::default()
+        };
+    }
+    if net.tls_dir.is_none() {
+        net.tls_name = None;
+    }
+    v.extend(net.to_cli());
+    v
+}
+
+/// Start the profile and supervise it until SIGINT/SIGTERM.
+pub async fn run(args: Args) -> Result<()> {
+    let profile = Profile::load(&args.profile, &args.deploy_dir)?;
+    let exe_dir = std::env::current_exe()?
+        .parent()
+        .map(Path::to_path_buf)
+        .ok_or_else(|| anyhow!("cannot locate the echoctl binary's directory"))?;
+    let nets = networks(&args.bus, profile.services.len());
+    let lines: Vec<(ServiceSpec, PathBuf, Vec<String>)> = profile
+        .services
+        .iter()
+        .zip(&nets)
+        .map(|(s, n)| {
+            (
+                s.clone(),
+                exe_dir.join(&s.program),
+                command_line(s, &args, n),
+            )
+        })
+        .collect();
+    eprintln!("profile {}: {}", args.profile, profile.description);
+    for (s, p, a) in &lines {
+        eprintln!("  {:<18} {} {}", s.name, p.display(), a.join(" "));
+    }
+    if args.dry_run {
+        return Ok(());
+    }
+    for (_, p, _) in &lines {
+        anyhow::ensure!(
+            p.is_file(),
+            "{} is missing: build the workspace binaries",
+            p.display()
+        );
+    }
+    let mut stop = shutdown::on_signals();
+    let mut tasks = vec![];
+    for (spec, program, argv) in lines {
+        let stop = stop.clone();
+        tasks.push(tokio::spawn(supervise(spec.name, program, argv, stop)));
+    }
+    stop.wait().await;
+    for t in tasks {
+        let _ = t.await;
+    }
+    Ok(())
+}
+
+/// Keep one service running: restart after it exits (1 s back-off, doubling to 30 s; reset
+/// after a minute of health); on `stop`, SIGTERM then SIGKILL after 5 s.
+async fn supervise(
+    name: String,
+    program: PathBuf,
+    argv: Vec<String>,
+    mut stop: shutdown::Shutdown,
+) {
+    let mut backoff = Duration::from_secs(1);
+    loop {
+        let started = Instant::now();
+        let child = tokio::process::Command::new(&program)
+            .args(&argv)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .kill_on_drop(true)
+            .spawn();
+        let mut child = match child {
+            Ok(c) => c,
+            Err(e) => {
+                eprintln!("[{name}] cannot start {}: {e}", program.display());
+                return;
+            }
+        };
+        for pipe in [
+            child
+                .stdout
+                .take()
+                .map(|p| Box::new(p) as Box<dyn tokio::io::AsyncRead + Unpin + Send>),
+            child
+                .stderr
+                .take()
+                .map(|p| Box::new(p) as Box<dyn tokio::io::AsyncRead + Unpin + Send>),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            let name = name.clone();
+            tokio::spawn(async move {
+                let mut lines = tokio::io::BufReader::new(pipe).lines();
+                while let Ok(Some(l)) = lines.next_line().await {
+                    eprintln!("[{name}] {l}");
+                }
+            });
+        }
+        tokio::select! {
+            status = child.wait() => {
+                let status = status.map(|s| s.to_string()).unwrap_or_else(|e| e.to_string());
+                if started.elapsed() > Duration::from_secs(60) {
+                    backoff = Duration::from_secs(1);
+                }
+                eprintln!("[{name}] exited ({status}); restarting in {:.0} s", backoff.as_secs_f64());
+                tokio::select! {
+                    _ = tokio::time::sleep(backoff) => {}
+                    _ = stop.wait() => return,
+                }
+                backoff = (backoff * 2).min(Duration::from_secs(30));
+            }
+            _ = stop.wait() => {
+                if let Some(pid) = child.id() {
+                    let _ = std::process::Command::new("kill").args(["-TERM", &pid.to_string()]).status();
+                }
+                if tokio::time::timeout(Duration::from_secs(5), child.wait()).await.is_err() {
+                    let _ = child.kill().await;
+                }
+                return;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        up: Args,
+    }
+
+    fn args(extra: &[&str]) -> Args {
+        let mut v = vec!["up", "--profile", "edge", "--deploy-dir", "../../deploy"];
+        v.extend(extra);
+        Cli::parse_from(v).up
+    }
+
+    #[test]
+    fn every_shipped_profile_loads() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../deploy");
+        for e in std::fs::read_dir(dir.join("profiles")).unwrap() {
+            let p = e.unwrap().path();
+            let prof = Profile::load(p.to_str().unwrap(), &dir).unwrap();
+            assert!(!prof.description.is_empty(), "{}", p.display());
+        }
+    }
+
+    #[test]
+    fn placeholders_fill_and_empty_flags_drop() {
+        let prof = Profile::load("edge", Path::new("../../deploy")).unwrap();
+        let fc = &prof.services[0];
+        let a = args(&["--rank", "1"]);
+        let line = expand(fc, &a);
+        assert!(line.contains(&"models/hri".to_string()));
+        assert!(!line.contains(&"--robots".to_string()), "{line:?}");
+        assert_eq!(line.last().unwrap(), "1");
+        let a = args(&["--serve", "r2,r3"]);
+        assert!(expand(fc, &a).contains(&"r2,r3".to_string()));
+    }
+
+    #[test]
+    fn clients_share_the_router_and_peers_mesh_with_identities() {
+        let prof = Profile::load("single", Path::new("../../deploy")).unwrap();
+        let a = args(&[
+            "--mode",
+            "client",
+            "--connect",
+            "tls/10.0.0.1:7447",
+            "--tls-dir",
+            "/etc/echo/tls",
+        ]);
+        let nets = networks(&a.bus, prof.services.len());
+        let line = command_line(&prof.services[0], &a, &nets[0]);
+        assert!(line.contains(&"tls/10.0.0.1:7447".to_string()));
+        // mock-robot speaks as the robot interface.
+        let i = line.iter().position(|x| x == "--tls-name").unwrap();
+        assert_eq!(line[i + 1], "robot-interface");
+        let a = args(&[]);
+        let nets = networks(&a.bus, 3);
+        assert_eq!(nets[0].connect.len(), 2);
+        assert_ne!(nets[0].listen, nets[1].listen);
+    }
+}
