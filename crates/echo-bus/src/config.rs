@@ -93,11 +93,12 @@ impl BusArgs {
         v
     }
 
-    /// These flags with `service` as the TLS identity unless `--tls-name` names one.
+    /// These flags with `service`'s TLS identity ([`default_identity`]) unless `--tls-name`
+    /// names one.
     pub fn for_service(&self, service: &str) -> BusArgs {
         let mut a = self.clone();
         if a.tls_name.is_none() {
-            a.tls_name = Some(service.to_string());
+            a.tls_name = Some(default_identity(service).to_string());
         }
         a
     }
@@ -165,6 +166,18 @@ impl BusArgs {
             set(&mut cfg, "transport/link/protocols", r#"["tls"]"#.into())?;
         }
         Ok(cfg)
+    }
+}
+
+/// The certificate identity a service speaks as by default: the stand-ins take the role they
+/// play (`mock-robot` → `robot-interface`, `mock-perception` → `perception`), echoctl's tools
+/// speak as `operator`, every service as itself.
+pub fn default_identity(service: &str) -> &str {
+    match service {
+        "mock-robot" => "robot-interface",
+        "mock-perception" => "perception",
+        s if s.starts_with("echoctl") || s == "operator" => "operator",
+        s => s,
     }
 }
 
@@ -246,6 +259,8 @@ mod tests {
             .unwrap()
             .contains("safety.pem"));
         assert!(a.to_cli().contains(&"--tls-name".to_string()));
+        assert_eq!(default_identity("mock-robot"), "robot-interface");
+        assert_eq!(default_identity("echoctl-list"), "operator");
         let _ = std::fs::remove_dir_all(&dir);
     }
 

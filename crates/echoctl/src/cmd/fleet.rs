@@ -4,9 +4,10 @@
 //! robots' cameras and joint encoders (pose-estimator frames at 15 Hz stamped when sent, joint
 //! states at 50 Hz) and times what comes back:
 //!
-//! - perception → skeletons: `humans` arrival − the frame's stamp (the bridge keeps it);
-//! - perception → forecast: `forecast` arrival − its stamp (the last observed frame's), and the
-//!   model's own `inference_ms` from the message, so overhead = latency − inference;
+//! - perception → skeletons: a `humans` arrival − when the robot's latest frame was sent (the
+//!   bridge resamples to the model-rate grid, so its stamps are grid times, not frame times);
+//! - perception → forecast: a `forecast` arrival − when that robot's latest frame was sent, and
+//!   the model's own `inference_ms` from the message, so overhead = latency − inference;
 //! - forecast → command: the safety service's next command after the forecast arrived (its
 //!   control loop runs at a fixed 50 Hz, so this includes waiting for the next cycle).
 
@@ -153,7 +154,8 @@ struct StampOnly {
 
 #[derive(Default)]
 struct Arrivals {
-    humans: Vec<f64>,
+    sent: Vec<Vec<u64>>,
+    humans: Vec<(usize, u64)>,
     forecasts: Vec<(usize, u64, u64, f64)>,
     commands: Vec<(usize, u64)>,
     stops: u64,
@@ -246,7 +248,10 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
     }
 
     // What comes back, timed in the subscriber callbacks.
-    let arrivals = Arc::new(Mutex::new(Arrivals::default()));
+    let arrivals = Arc::new(Mutex::new(Arrivals {
+        sent: vec![vec![]; opts.robots],
+        ..Default::default()
+    }));
     let measuring = Arc::new(std::sync::atomic::AtomicBool::new(false));
     let mut subs = vec![];
     for (i, r) in ids.iter().enumerate() {
@@ -259,10 +264,11 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
                     if !m.load(std::sync::atomic::Ordering::Relaxed) {
                         return;
                     }
-                    if let Ok(st) = serde_json::from_slice::<Stamped>(&s.payload().to_bytes()) {
-                        let mut a = a.lock().unwrap_or_else(|e| e.into_inner());
-                        a.humans
-                            .push(t.saturating_sub(st.header.stamp_ns) as f64 / 1e6);
+                    if serde_json::from_slice::<Stamped>(&s.payload().to_bytes()).is_ok() {
+                        a.lock()
+                            .unwrap_or_else(|e| e.into_inner())
+                            .humans
+                            .push((i, t));
                     }
                 })
                 .await
@@ -369,7 +375,9 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
                 for (i, r) in ids.iter().enumerate() {
                     let (_, mut f) = frame_of(k, r);
                     f.header.stamp_ns = now_ns();
+                    let sent = f.header.stamp_ns;
                     raw_pubs[i].put(f).await?;
+                    arrivals.lock().unwrap_or_else(|e| e.into_inner()).sent[i].push(sent);
                     if measuring_since.is_some() {
                         report.frames_sent += 1;
                     }
@@ -412,11 +420,25 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
     drop(subs);
     drop(children);
     let a = std::mem::take(&mut *arrivals.lock().unwrap_or_else(|e| e.into_inner()));
-    report.to_humans_ms = a.humans;
+    // Latency from the robot's latest frame sent before an arrival.
+    let since_frame = |i: usize, t: u64| -> Option<u64> {
+        let sent = &a.sent[i];
+        let k = sent.partition_point(|s| *s <= t);
+        (k > 0).then(|| t - sent[k - 1])
+    };
+    report.to_humans_ms = a
+        .humans
+        .iter()
+        .filter_map(|(i, t)| since_frame(*i, *t))
+        .map(|d| d as f64 / 1e6)
+        .collect();
     report.forecasts = a.forecasts.len() as u64;
     report.safety_stops = a.stops;
-    for (i, stamp, t, inf) in &a.forecasts {
-        let lat = t.saturating_sub(*stamp) as f64 / 1e6;
+    for (i, _stamp, t, inf) in &a.forecasts {
+        let Some(d) = since_frame(*i, *t) else {
+            continue;
+        };
+        let lat = d as f64 / 1e6;
         report.to_forecast_ms.push(lat);
         if inf.is_finite() {
             report.inference_ms.push(*inf);
@@ -424,7 +446,7 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
         if *i < opts.with_safety {
             if let Some((_, tc)) = a.commands.iter().find(|(j, tc)| j == i && tc >= t) {
                 report.forecast_to_command_ms.push((tc - t) as f64 / 1e6);
-                report.to_command_ms.push((tc - stamp) as f64 / 1e6);
+                report.to_command_ms.push(lat + (tc - t) as f64 / 1e6);
             }
         }
     }
