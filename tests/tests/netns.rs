@@ -42,6 +42,7 @@ fn wait_for_log(h: &Harness, label: &str, text: &str, timeout: Duration) -> bool
 struct Timeline {
     status: Vec<(u64, SafetyStatus)>,
     forecasts: Vec<u64>,
+    raw: Vec<u64>,
     speed: Vec<(u64, f64)>,
 }
 
@@ -50,6 +51,7 @@ impl Timeline {
         let mut t = Timeline {
             status: vec![],
             forecasts: vec![],
+            raw: vec![],
             speed: vec![],
         };
         for r in echo_record::read_recording(file)? {
@@ -59,6 +61,8 @@ impl Timeline {
             } else if r.key.ends_with("/forecast") {
                 serde_json::from_slice::<Forecast>(&r.payload)?;
                 t.forecasts.push(r.log_time_ns);
+            } else if r.key.ends_with("/perception/raw") {
+                t.raw.push(r.log_time_ns);
             } else if r.key.ends_with("/robot/state") {
                 let js: JointState = serde_json::from_slice(&r.payload)?;
                 let v = js.velocity.iter().fold(0.0f64, |m, x| m.max(x.abs()));
@@ -111,6 +115,25 @@ impl Timeline {
                 && *t < at
                 && matches!(s.state, SafetyState::Following | SafetyState::Limiting)
         }) && self.forecasts.iter().any(|t| *t >= from && *t < at)
+    }
+
+    /// Median and p99 (ms) from the latest perception frame seen on the robot host to each
+    /// forecast arriving back from the edge host, between `from` and `to`.
+    fn round_trip_ms(&self, from: u64, to: u64) -> (f64, f64) {
+        let mut d: Vec<f64> = self
+            .forecasts
+            .iter()
+            .filter(|t| **t >= from && **t < to)
+            .filter_map(|t| {
+                let k = self.raw.partition_point(|r| r <= t);
+                (k > 0).then(|| (t - self.raw[k - 1]) as f64 / 1e6)
+            })
+            .collect();
+        d.sort_by(f64::total_cmp);
+        if d.is_empty() {
+            return (f64::NAN, f64::NAN);
+        }
+        (d[d.len() / 2], d[(d.len() * 99 / 100).min(d.len() - 1)])
     }
 
     fn max_speed(&self, from: u64, to: u64) -> f64 {
@@ -293,6 +316,10 @@ fn faults_across_hosts_stop_the_robot_and_recover() -> anyhow::Result<()> {
             "{name}: the pipeline did not resume"
         );
     }
+    let (med, p99) = t.round_trip_ms(restart_at + 3_000_000_000, down_at);
+    report.push(format!(
+        "perception frame → forecast back on the robot host, across namespaces: median {med:.2} ms, p99 {p99:.2} ms"
+    ));
     eprintln!("{}", report.join("\n"));
     drop(h);
     drop(topo);
