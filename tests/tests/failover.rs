@@ -20,6 +20,24 @@ async fn collect(
     out
 }
 
+/// Start a forecaster of `rank` (the zero-velocity backend: failover does not depend on the model).
+fn spawn_forecaster(h: &mut Harness, label: &str, rank: &str) -> anyhow::Result<()> {
+    let model = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/forecaster");
+    let model = model.to_str().unwrap_or_default();
+    h.spawn(
+        label,
+        "forecaster",
+        &[
+            "--model",
+            model,
+            "--backend",
+            "zero-velocity",
+            "--rank",
+            rank,
+        ],
+    )
+}
+
 /// Source prefix of the forecasts published by the process `pid`.
 fn from_pid(source: &str, pid: u32) -> bool {
     source.starts_with(&format!("forecaster-{pid}-"))
@@ -27,18 +45,6 @@ fn from_pid(source: &str, pid: u32) -> bool {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn standby_takes_over_when_the_primary_dies() -> anyhow::Result<()> {
-    let model = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/forecaster");
-    let model = model.to_str().unwrap_or_default().to_string();
-    let fc = |rank: &str| {
-        vec![
-            "--model".to_string(),
-            model.clone(),
-            "--backend".into(),
-            "zero-velocity".into(),
-            "--rank".into(),
-            rank.into(),
-        ]
-    };
     let mut h = Harness::new("sys-failover", 7)?;
     h.spawn("mock-robot", "echoctl", &["mock-robot"])?;
     h.spawn("perception-bridge", "perception-bridge", &[])?;
@@ -47,12 +53,7 @@ async fn standby_takes_over_when_the_primary_dies() -> anyhow::Result<()> {
         "echoctl",
         &["mock-perception", "--clip", "test:7"],
     )?;
-    let args: Vec<String> = fc("0");
-    h.spawn(
-        "primary",
-        "forecaster",
-        &args.iter().map(String::as_str).collect::<Vec<_>>(),
-    )?;
+    spawn_forecaster(&mut h, "primary", "0")?;
     let bus = h.bus("system-test").await?;
     let robot = bus.robot().clone();
     let forecasts = bus.subscribe(&topics::forecast(&robot)).await?;
@@ -62,12 +63,7 @@ async fn standby_takes_over_when_the_primary_dies() -> anyhow::Result<()> {
         Duration::from_secs(60),
     )
     .await?;
-    let args: Vec<String> = fc("1");
-    h.spawn(
-        "standby",
-        "forecaster",
-        &args.iter().map(String::as_str).collect::<Vec<_>>(),
-    )?;
+    spawn_forecaster(&mut h, "standby", "1")?;
     h.wait_alive(
         &bus,
         &["forecaster-r1", "mock-perception", "perception-bridge"],
@@ -93,12 +89,7 @@ async fn standby_takes_over_when_the_primary_dies() -> anyhow::Result<()> {
     );
 
     // A duplicate rank refuses to start.
-    let args: Vec<String> = fc("1");
-    h.spawn(
-        "duplicate",
-        "forecaster",
-        &args.iter().map(String::as_str).collect::<Vec<_>>(),
-    )?;
+    spawn_forecaster(&mut h, "duplicate", "1")?;
 
     // The primary crashes: the standby publishes soon after.
     let killed = tokio::time::Instant::now();
@@ -126,12 +117,7 @@ async fn standby_takes_over_when_the_primary_dies() -> anyhow::Result<()> {
     );
 
     // A new primary starts: the standby steps back.
-    let args: Vec<String> = fc("0");
-    h.spawn(
-        "primary-2",
-        "forecaster",
-        &args.iter().map(String::as_str).collect::<Vec<_>>(),
-    )?;
+    spawn_forecaster(&mut h, "primary-2", "0")?;
     let p2 = h.pid("primary-2").unwrap();
     let deadline = tokio::time::Instant::now() + Duration::from_secs(60);
     loop {

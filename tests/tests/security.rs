@@ -47,6 +47,14 @@ fn client(port: u16, dir: &Path, name: &str, tls: bool) -> BusArgs {
     }
 }
 
+/// Publish raw bytes on `key`.
+async fn put(bus: &Bus, key: &str, payload: impl Into<Vec<u8>>) -> anyhow::Result<()> {
+    bus.session()
+        .put(key, payload.into())
+        .await
+        .map_err(|e| anyhow::anyhow!("{e}"))
+}
+
 /// Open a client, retrying while the router starts.
 async fn connect(args: &BusArgs, service: &str) -> anyhow::Result<Bus> {
     let mut last = None;
@@ -123,10 +131,7 @@ async fn only_certified_identities_connect_and_only_safety_commands() -> anyhow:
     tokio::time::sleep(Duration::from_millis(500)).await;
     for _ in 0..20 {
         for b in [&forecaster, &intruder] {
-            b.session()
-                .put(keys::command(&robot), "move!")
-                .await
-                .map_err(|e| anyhow::anyhow!("{e}"))?;
+            put(b, &keys::command(&robot), "move!").await?;
         }
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
@@ -146,16 +151,8 @@ async fn only_certified_identities_connect_and_only_safety_commands() -> anyhow:
     while (received.load(Ordering::Relaxed) == 0 || forecasts.load(Ordering::Relaxed) == 0)
         && tokio::time::Instant::now() < deadline
     {
-        safety
-            .session()
-            .put(keys::command(&robot), "{}")
-            .await
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-        forecaster
-            .session()
-            .put(keys::forecast(&robot), "{}")
-            .await
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        put(&safety, &keys::command(&robot), "{}").await?;
+        put(&forecaster, &keys::forecast(&robot), "{}").await?;
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
     let before = received.load(Ordering::Relaxed);
@@ -169,11 +166,7 @@ async fn only_certified_identities_connect_and_only_safety_commands() -> anyhow:
     );
     // Every command that arrived came from safety: more forecaster puts add nothing.
     for _ in 0..10 {
-        forecaster
-            .session()
-            .put(keys::command(&robot), "move!")
-            .await
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        put(&forecaster, &keys::command(&robot), "move!").await?;
     }
     tokio::time::sleep(Duration::from_millis(500)).await;
     assert_eq!(received.load(Ordering::Relaxed), before);
@@ -193,21 +186,13 @@ async fn only_certified_identities_connect_and_only_safety_commands() -> anyhow:
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     tokio::time::sleep(Duration::from_millis(300)).await;
     for _ in 0..10 {
-        forecaster
-            .session()
-            .put(traj.clone(), vec![0u8; 8])
-            .await
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        put(&forecaster, &traj, vec![0u8; 8]).await?;
     }
     tokio::time::sleep(Duration::from_millis(300)).await;
     assert_eq!(trajectories.load(Ordering::Relaxed), 0);
     let deadline = tokio::time::Instant::now() + Duration::from_secs(5);
     while trajectories.load(Ordering::Relaxed) == 0 && tokio::time::Instant::now() < deadline {
-        safety
-            .session()
-            .put(traj.clone(), vec![0u8; 8])
-            .await
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        put(&safety, &traj, vec![0u8; 8]).await?;
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
     assert!(

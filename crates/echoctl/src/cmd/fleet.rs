@@ -253,79 +253,55 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
         ..Default::default()
     }));
     let measuring = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    // Each arrival is timed in the subscriber callback and recorded only while measuring.
+    type Record = Box<dyn Fn(&mut Arrivals, u64, &[u8]) + Send + Sync>;
     let mut subs = vec![];
     for (i, r) in ids.iter().enumerate() {
-        let (a, m) = (arrivals.clone(), measuring.clone());
-        subs.push(
-            bus.session()
-                .declare_subscriber(keys::humans(r))
-                .callback(move |s| {
-                    let t = now_ns();
-                    if !m.load(std::sync::atomic::Ordering::Relaxed) {
-                        return;
+        let mut wanted: Vec<(String, Record)> = vec![
+            (
+                keys::humans(r),
+                Box::new(move |a, t, b| {
+                    if serde_json::from_slice::<Stamped>(b).is_ok() {
+                        a.humans.push((i, t));
                     }
-                    if serde_json::from_slice::<Stamped>(&s.payload().to_bytes()).is_ok() {
-                        a.lock()
-                            .unwrap_or_else(|e| e.into_inner())
-                            .humans
-                            .push((i, t));
+                }),
+            ),
+            (
+                keys::forecast(r),
+                Box::new(move |a, t, b| {
+                    if let Ok(st) = serde_json::from_slice::<Stamped>(b) {
+                        let inference = st.inference_ms.unwrap_or(f64::NAN);
+                        a.forecasts.push((i, st.header.stamp_ns, t, inference));
                     }
-                })
-                .await
-                .map_err(|e| anyhow!("{e}"))?,
-        );
-        let (a, m) = (arrivals.clone(), measuring.clone());
-        subs.push(
-            bus.session()
-                .declare_subscriber(keys::forecast(r))
-                .callback(move |s| {
-                    let t = now_ns();
-                    if !m.load(std::sync::atomic::Ordering::Relaxed) {
-                        return;
-                    }
-                    if let Ok(st) = serde_json::from_slice::<Stamped>(&s.payload().to_bytes()) {
-                        let mut a = a.lock().unwrap_or_else(|e| e.into_inner());
-                        a.forecasts.push((
-                            i,
-                            st.header.stamp_ns,
-                            t,
-                            st.inference_ms.unwrap_or(f64::NAN),
-                        ));
-                    }
-                })
-                .await
-                .map_err(|e| anyhow!("{e}"))?,
-        );
+                }),
+            ),
+        ];
         if i < opts.with_safety {
+            wanted.push((
+                keys::command(r),
+                Box::new(move |a, t, _| a.commands.push((i, t))),
+            ));
+            wanted.push((
+                keys::safety_status(r),
+                Box::new(|a, _, b| {
+                    if let Ok(st) = serde_json::from_slice::<echo_msgs::SafetyStatus>(b) {
+                        if st.reasons.iter().any(|r| r.contains("no valid plan")) {
+                            a.stops += 1;
+                        }
+                    }
+                }),
+            ));
+        }
+        for (key, record) in wanted {
             let (a, m) = (arrivals.clone(), measuring.clone());
             subs.push(
                 bus.session()
-                    .declare_subscriber(keys::command(r))
-                    .callback(move |_| {
+                    .declare_subscriber(key)
+                    .callback(move |s| {
                         let t = now_ns();
                         if m.load(std::sync::atomic::Ordering::Relaxed) {
-                            a.lock()
-                                .unwrap_or_else(|e| e.into_inner())
-                                .commands
-                                .push((i, t));
-                        }
-                    })
-                    .await
-                    .map_err(|e| anyhow!("{e}"))?,
-            );
-            let (a, m) = (arrivals.clone(), measuring.clone());
-            subs.push(
-                bus.session()
-                    .declare_subscriber(keys::safety_status(r))
-                    .callback(move |s| {
-                        if !m.load(std::sync::atomic::Ordering::Relaxed) {
-                            return;
-                        }
-                        let b = s.payload().to_bytes();
-                        if let Ok(st) = serde_json::from_slice::<echo_msgs::SafetyStatus>(&b) {
-                            if st.reasons.iter().any(|r| r.contains("no valid plan")) {
-                                a.lock().unwrap_or_else(|e| e.into_inner()).stops += 1;
-                            }
+                            let bytes = s.payload().to_bytes();
+                            record(&mut a.lock().unwrap_or_else(|e| e.into_inner()), t, &bytes);
                         }
                     })
                     .await
