@@ -138,6 +138,13 @@ impl ForecastServer {
         model_name: &str,
         robot_model: RobotModel,
     ) -> anyhow::Result<ForecastServer> {
+        let agent_b = backend.config().agent_features[1];
+        anyhow::ensure!(
+            agent_b == FEATURES || agent_b == ROBOT_FEATURES,
+            "agent B has {agent_b} features: the server runs human–human models ({FEATURES}) and \
+             HRI models on joint features ({ROBOT_FEATURES}); frozen-retargeter HRI checkpoints \
+             are evaluated offline (echoctl eval --hri)"
+        );
         let dim = backend.config().text_dim;
         anyhow::ensure!(
             dim == 0 || text.as_ref().is_some_and(|e| e.dim() == dim),
@@ -619,6 +626,25 @@ mod tests {
         let out = s.run_batch();
         assert_eq!(out.len(), 1);
         assert_eq!(out[0].1.as_ref().unwrap_err().reason(), "model");
+    }
+
+    #[test]
+    fn models_with_other_agent_features_are_refused() {
+        let cfg = ForecasterConfig {
+            pred: 15,
+            agent_features: [FEATURES, 42],
+            ..Default::default()
+        };
+        let e = ForecastServer::new(
+            ServerConfig::default(),
+            Box::new(echo_models::ZeroVelocityBackend::new(cfg)),
+            None,
+            "frozen",
+            RobotModel::tiago_dual(),
+        )
+        .err()
+        .expect("refused");
+        assert!(e.to_string().contains("42 features"), "{e}");
     }
 
     #[test]

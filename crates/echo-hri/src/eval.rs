@@ -103,6 +103,7 @@ pub fn model_forecasts(
     model: &Forecaster,
     text: Option<&SentenceEncoder>,
     ws: &[&HriWindow],
+    codec: Option<&crate::codec::RobotCodec>,
 ) -> Result<Vec<RobotForecast>> {
     let cfg = model.config();
     let txt = match (text, cfg.text_dim > 0) {
@@ -116,7 +117,7 @@ pub fn model_forecasts(
         _ => None,
     };
     let b = batch(ws, txt, cfg.text_dim, &Device::Cpu)?;
-    let out = crate::train::forecast(model, &b)?;
+    let out = crate::train::forecast(model, &b, codec)?;
     Ok(ws
         .iter()
         .zip(out)

@@ -26,6 +26,7 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
+use crate::codec::RobotCodec;
 use crate::data::{HriWindow, OBS, PRED, ROBOT_FEATURES, ROBOT_JOINTS};
 
 /// How the interaction and imitation losses enter.
@@ -70,6 +71,9 @@ pub struct HriTrainConfig {
     pub social: Social,
     /// Seed.
     pub seed: u64,
+    /// The retargeter's encoder/decoder, frozen, wrap the robot agent ([`crate::codec`]).
+    #[serde(default)]
+    pub frozen_retargeter: bool,
 }
 
 impl Default for HriTrainConfig {
@@ -88,18 +92,37 @@ impl Default for HriTrainConfig {
             w_imit: 1.0,
             social: Social::Adaptive,
             seed: 1,
+            frozen_retargeter: false,
         }
     }
 }
 
 /// The HRI model's architecture: the human–human one with a robot agent.
-pub fn hri_model_config(text_dim: usize) -> ForecasterConfig {
+/// With `codec`, the robot agent's features are the codec's.
+pub fn hri_model_config(text_dim: usize, codec: Option<&RobotCodec>) -> ForecasterConfig {
     ForecasterConfig {
         pred: PRED,
         text_dim,
-        agent_features: [FEATURES, ROBOT_FEATURES],
+        agent_features: [
+            FEATURES,
+            codec.map_or(ROBOT_FEATURES, |c| c.model_features()),
+        ],
         ..Default::default()
     }
+}
+
+/// Social and individual forecasts of a batch, robot features decoded through `codec`.
+fn forward(
+    model: &Forecaster,
+    b: &Batch,
+    codec: Option<&RobotCodec>,
+) -> candle_core::Result<([Tensor; 2], [Tensor; 2])> {
+    let Some(c) = codec else {
+        return model.forward_pair(&b.obs_a, &b.obs_b, b.text.as_ref());
+    };
+    let ([sa, sb], [ia, ib]) =
+        model.forward_pair(&b.obs_a, &c.to_model(&b.obs_b)?, b.text.as_ref())?;
+    Ok(([sa, c.from_model(&sb)?], [ia, c.from_model(&ib)?]))
 }
 
 /// The FK of the two grippers as a function of the 17 robot joints.
@@ -225,8 +248,9 @@ pub fn loss(
     fk: &BatchFk,
     t: &HriTrainConfig,
     b: &Batch,
+    codec: Option<&RobotCodec>,
 ) -> candle_core::Result<(Tensor, Losses)> {
-    let ([sa, sb], [ia, ib]) = model.forward_pair(&b.obs_a, &b.obs_b, b.text.as_ref())?;
+    let ([sa, sb], [ia, ib]) = forward(model, b, codec)?;
     let self_ = ((per_frame_mse(&ia, &b.fut_a)? + per_frame_mse(&ib, &b.fut_b)?)? * 0.5)?;
     let soc = ((per_frame_mse(&sa, &b.fut_a)? + per_frame_mse(&sb, &b.fut_b)?)? * 0.5)?;
     let ee = grippers(fk, &sb)?;
@@ -258,8 +282,12 @@ pub fn loss(
 }
 
 /// The social forecast of a batch: per window, the robot features per future frame.
-pub fn forecast(model: &Forecaster, b: &Batch) -> candle_core::Result<Vec<Vec<Vec<f32>>>> {
-    let ([_, sb], _) = model.forward_pair(&b.obs_a, &b.obs_b, b.text.as_ref())?;
+pub fn forecast(
+    model: &Forecaster,
+    b: &Batch,
+    codec: Option<&RobotCodec>,
+) -> candle_core::Result<Vec<Vec<Vec<f32>>>> {
+    let ([_, sb], _) = forward(model, b, codec)?;
     sb.to_vec3::<f32>()
 }
 
@@ -282,8 +310,13 @@ pub fn train(
     windows: &[HriWindow],
     text: Option<&SentenceEncoder>,
     fk: &BatchFk,
+    codec: Option<&RobotCodec>,
     mut on_step: impl FnMut(usize, usize, &Losses),
 ) -> Result<(VarMap, Vec<Losses>)> {
+    anyhow::ensure!(
+        codec.is_some() == t.frozen_retargeter,
+        "the frozen-retargeter option and the codec passed disagree"
+    );
     anyhow::ensure!(!windows.is_empty(), "no HRI windows to train on");
     let dev = Device::Cpu;
     let table = match (text, cfg.text_dim > 0) {
@@ -331,7 +364,7 @@ pub fn train(
                     .collect::<Vec<f32>>()
             });
             let b = batch(&ws, txt, cfg.text_dim, &dev)?;
-            let (l, parts) = loss(&model, fk, t, &b)?;
+            let (l, parts) = loss(&model, fk, t, &b, codec)?;
             anyhow::ensure!(
                 parts.total.is_finite(),
                 "loss became {} at step {step}",

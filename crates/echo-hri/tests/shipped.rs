@@ -30,7 +30,7 @@ fn shipped_hri_checkpoint_beats_zero_velocity_on_the_test_split() {
     let refs: Vec<_> = ws.iter().collect();
     let mut fc = vec![];
     for chunk in refs.chunks(64) {
-        fc.extend(model_forecasts(&ck.model, ck.text.as_ref(), chunk).unwrap());
+        fc.extend(model_forecasts(&ck.model, ck.text.as_ref(), chunk, None).unwrap());
     }
     let m = evaluate("hri", &refs, &fc, &r, &model, &body).unwrap();
     let z = evaluate("zv", &refs, &zero_velocity(&refs), &r, &model, &body).unwrap();

@@ -84,9 +84,22 @@ fn hri(args: &Args, split: Split) -> Result<()> {
     ];
     for stem in &args.hri {
         let ck = echo_models::Checkpoint::load(stem, &candle_core::Device::Cpu)?;
+        let frozen = ck
+            .meta
+            .hri_training
+            .as_ref()
+            .and_then(|t| t.get("frozen_retargeter"))
+            .and_then(|v| v.as_bool())
+            .unwrap_or(false);
+        let codec = frozen.then(|| echo_hri::codec::RobotCodec::new(&r));
         let mut fc = vec![];
         for chunk in refs.chunks(64) {
-            fc.extend(model_forecasts(&ck.model, ck.text.as_ref(), chunk)?);
+            fc.extend(model_forecasts(
+                &ck.model,
+                ck.text.as_ref(),
+                chunk,
+                codec.as_ref(),
+            )?);
         }
         let name = stem
             .file_name()

@@ -62,6 +62,9 @@ pub struct Args {
     /// HRI: how the interaction and imitation losses enter (none, fixed, adaptive).
     #[arg(long, default_value = "adaptive")]
     pub social: String,
+    /// HRI: wrap the robot agent in the retargeter's frozen encoder and decoder.
+    #[arg(long)]
+    pub freeze_retargeter: bool,
     /// HRI: retargeter checkpoint that turns person B into the robot.
     #[arg(long, default_value = "models/retargeter")]
     pub retargeter: PathBuf,
@@ -283,11 +286,15 @@ fn hri(args: &Args) -> Result<()> {
         max_minutes: args.max_minutes,
         social,
         seed: args.seed,
+        frozen_retargeter: args.freeze_retargeter,
         ..Default::default()
     };
     let dev = candle_core::Device::Cpu;
     let text = SentenceEncoder::load_default(&dev)?;
-    let cfg = hri_model_config(text.dim());
+    let codec = args
+        .freeze_retargeter
+        .then(|| echo_hri::codec::RobotCodec::new(&r));
+    let cfg = hri_model_config(text.dim(), codec.as_ref());
     let windows = hri_windows(echo_motion::synth::Split::Train, t.clips, t.stride, &r)?;
     println!(
         "{} HRI training windows from {} clips",
@@ -296,11 +303,19 @@ fn hri(args: &Args) -> Result<()> {
     );
     let fk = gripper_fk(&model, &r)?;
     let pb = progress(0, "training");
-    let (vm, log) = train_hri(&cfg, &t, &windows, Some(&text), &fk, |k, n, l| {
-        pb.set_length(n as u64);
-        pb.set_position(k as u64);
-        pb.set_message(format!("loss {:.4}", l.total));
-    })?;
+    let (vm, log) = train_hri(
+        &cfg,
+        &t,
+        &windows,
+        Some(&text),
+        &fk,
+        codec.as_ref(),
+        |k, n, l| {
+            pb.set_length(n as u64);
+            pb.set_position(k as u64);
+            pb.set_message(format!("loss {:.4}", l.total));
+        },
+    )?;
     pb.finish_and_clear();
     for (e, l) in log.iter().enumerate() {
         println!(
@@ -309,11 +324,11 @@ fn hri(args: &Args) -> Result<()> {
         );
     }
     let meta = CheckpointMeta {
-        model: cfg,
+        model: cfg.clone(),
         training: TrainConfig::default(),
         command: std::env::args().collect::<Vec<_>>().join(" "),
         text_encoder: text.id().to_string(),
-        features: "agent A (human): 22 pelvis-relative joints in the heading frame, pelvis xyz, heading quaternion (73); agent B (robot): 14 arm joints, torso, head pan and tilt, base xyz, heading quaternion (24); window frame at the human's last observed pelvis and heading".into(),
+        features: format!("agent A (human): 22 pelvis-relative joints in the heading frame, pelvis xyz, heading quaternion (73); agent B (robot): {}, torso, head pan and tilt, base xyz, heading quaternion ({}); window frame at the human's last observed pelvis and heading", if args.freeze_retargeter { format!("the 14 arm joints as the frozen retargeter's {}-d latent ({})", codec.as_ref().map_or(0, |c| c.latent()), args.retargeter.display()) } else { "14 arm joints".to_string() }, cfg.agent_features[1]),
         hri_training: Some(serde_json::to_value(&t)?),
     };
     Checkpoint::save(&vm, &meta, &out)?;
