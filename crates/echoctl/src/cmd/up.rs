@@ -135,12 +135,13 @@ pub fn command_line(spec: &ServiceSpec, args: &Args, net: &BusArgs) -> Vec<Strin
     let mut net = net.clone();
     net.tls_name = Some(spec.identity.clone().unwrap_or_else(|| spec.name.clone()));
     if spec.program == "echoctl" && v.first().is_some_and(|x| x == "router") {
-        // The router takes its endpoints from its own config; only identity passes on.
+        // The router takes its endpoints from its own config (or the host's own --listen);
+        // only identity passes on, never the loopback mesh.
         net = BusArgs {
             robot: net.robot.clone(),
             tls_dir: net.tls_dir.clone(),
             tls_name: net.tls_name.clone(),
-            listen: net.listen.clone(),
+            listen: args.bus.listen.clone(),
             ..Default::default()
         };
     }
@@ -326,6 +327,13 @@ mod tests {
         // mock-robot speaks as the robot interface.
         let i = line.iter().position(|x| x == "--tls-name").unwrap();
         assert_eq!(line[i + 1], "robot-interface");
+        // The router keeps its own endpoints.
+        let router = Profile::load("router-secure", Path::new("../../deploy")).unwrap();
+        let a = args(&["--tls-dir", "/etc/echo/tls"]);
+        let nets = networks(&a.bus, 1);
+        let line = command_line(&router.services[0], &a, &nets[0]);
+        assert!(!line.iter().any(|x| x.contains("127.0.0.1")), "{line:?}");
+        assert!(line.contains(&"router".to_string()));
         let a = args(&[]);
         let nets = networks(&a.bus, 3);
         assert_eq!(nets[0].connect.len(), 2);
