@@ -5,7 +5,9 @@
 //! 1. the forecaster is killed → the safety service stops the robot within its plan deadline;
 //!    restarted → the pipeline resumes;
 //! 2. the edge link goes down → the same stop (on the safety's own clock, not the Zenoh lease);
-//!    back up → the pipeline resumes.
+//!    back up → the pipeline resumes;
+//! 3. a hot standby forecaster (rank 1) runs next to the primary, the primary is killed → the
+//!    standby publishes within a few ticks.
 //!
 //! Everything on the robot host is recorded to MCAP and judged from the recording afterwards.
 //! Needs root (network namespaces); skips with a message where that is not permitted.
@@ -268,7 +270,28 @@ fn faults_across_hosts_stop_the_robot_and_recover() -> anyhow::Result<()> {
     std::thread::sleep(Duration::from_secs(4));
     let up_at = now_ns();
     topo.set_edge_link(true)?;
-    std::thread::sleep(Duration::from_secs(15));
+    std::thread::sleep(Duration::from_secs(8));
+
+    // Fault 3: with a hot standby running (rank 1), the primary dies: the standby takes over.
+    let standby_at = now_ns();
+    let standby_args = ["--model", hri.to_str().unwrap(), "--rank", "1"];
+    spawn(
+        &mut h,
+        "forecaster#standby",
+        &topo.edge,
+        &edge_net,
+        &standby_args,
+    )?;
+    assert!(wait_for_log(
+        &h,
+        "forecaster#standby",
+        "forecaster running",
+        Duration::from_secs(90)
+    ));
+    std::thread::sleep(Duration::from_secs(4));
+    let failover_at = now_ns();
+    h.kill("forecaster#2");
+    std::thread::sleep(Duration::from_secs(5));
     let end = now_ns();
     h.stop("recorder", Duration::from_secs(10));
 
@@ -282,7 +305,7 @@ fn faults_across_hosts_stop_the_robot_and_recover() -> anyhow::Result<()> {
     let mut report = vec![];
     for (name, fault, recover, next) in [
         ("forecaster killed", kill_at, restart_at, down_at),
-        ("edge link down", down_at, up_at, end),
+        ("edge link down", down_at, up_at, standby_at),
     ] {
         assert!(
             t.driven_before(fault, 2000),
@@ -316,6 +339,32 @@ fn faults_across_hosts_stop_the_robot_and_recover() -> anyhow::Result<()> {
             "{name}: the pipeline did not resume"
         );
     }
+    // The standby: the longest gap between forecasts around the takeover, and whether the safety
+    // service had to stop the robot.
+    let around: Vec<u64> = t
+        .forecasts
+        .iter()
+        .copied()
+        .filter(|x| *x >= failover_at - 1_000_000_000 && *x < end)
+        .collect();
+    let gap = around
+        .windows(2)
+        .map(|w| (w[1] - w[0]) as f64 / 1e6)
+        .fold(0.0, f64::max);
+    let after = around
+        .iter()
+        .filter(|x| **x > failover_at + 500_000_000)
+        .count();
+    let stopped = t.status.iter().any(|(x, st)| {
+        *x > failover_at
+            && *x < failover_at + 2_000_000_000
+            && st.reasons.iter().any(|r| r.contains("no valid plan"))
+    });
+    report.push(format!(
+        "primary killed with a standby running: longest forecast gap {gap:.0} ms; {after} forecasts from the standby in the next 4.5 s; safety stop: {stopped}"
+    ));
+    assert!(after > 30, "the standby did not take over");
+    assert!(gap < 400.0, "takeover gap {gap:.0} ms");
     let (med, p99) = t.round_trip_ms(restart_at + 3_000_000_000, down_at);
     report.push(format!(
         "perception frame → forecast back on the robot host, across namespaces: median {med:.2} ms, p99 {p99:.2} ms"
