@@ -4,19 +4,13 @@
 
 use std::time::Duration;
 
+use echo_bus::stats::process_rss_mib;
 use echo_bus::{keys, topics, RobotId};
 use echo_msgs::{Header, JointState, ServiceStatus};
 use echo_system_tests::Harness;
 
 /// Resident memory growth allowed per service during the flood, MiB.
 const RSS_GROWTH_BOUND_MIB: f64 = 64.0;
-
-fn rss_mib(pid: u32) -> Option<f64> {
-    let s = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmRSS:"))?;
-    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb / 1024.0)
-}
 
 /// Payloads that must all be rejected.
 fn hostile(robot: &str) -> Vec<Vec<u8>> {
@@ -92,7 +86,12 @@ async fn services_survive_a_flood_of_bad_input() -> anyhow::Result<()> {
     tokio::time::sleep(Duration::from_secs(2)).await;
     let before: Vec<(String, f64)> = services
         .iter()
-        .map(|s| (s.to_string(), rss_mib(h.pid(s).unwrap()).unwrap_or(0.0)))
+        .map(|s| {
+            (
+                s.to_string(),
+                process_rss_mib(h.pid(s).unwrap()).unwrap_or(0.0),
+            )
+        })
         .collect();
 
     let inputs = [
@@ -146,7 +145,7 @@ async fn services_survive_a_flood_of_bad_input() -> anyhow::Result<()> {
     // Everyone still runs, memory is bounded, and the rejections are counted.
     for (s, rss0) in &before {
         assert!(h.is_running(s), "{s} died:\n{}", h.log_tail(s));
-        let rss1 = rss_mib(h.pid(s).unwrap()).unwrap_or(0.0);
+        let rss1 = process_rss_mib(h.pid(s).unwrap()).unwrap_or(0.0);
         eprintln!("{s}: RSS {rss0:.0} → {rss1:.0} MiB");
         assert!(
             rss1 - rss0 < RSS_GROWTH_BOUND_MIB,

@@ -15,6 +15,7 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
+use echo_bus::stats::latency_summary;
 use echo_msgs::{now_ns, Forecast, JointState, SafetyState, SafetyStatus};
 use echo_system_tests::netns::{self, Topology};
 use echo_system_tests::Harness;
@@ -122,20 +123,15 @@ impl Timeline {
     /// Median and p99 (ms) from the latest perception frame seen on the robot host to each
     /// forecast arriving back from the edge host, between `from` and `to`.
     fn round_trip_ms(&self, from: u64, to: u64) -> (f64, f64) {
-        let mut d: Vec<f64> = self
+        let d = self
             .forecasts
             .iter()
             .filter(|t| **t >= from && **t < to)
             .filter_map(|t| {
                 let k = self.raw.partition_point(|r| r <= t);
                 (k > 0).then(|| (t - self.raw[k - 1]) as f64 / 1e6)
-            })
-            .collect();
-        d.sort_by(f64::total_cmp);
-        if d.is_empty() {
-            return (f64::NAN, f64::NAN);
-        }
-        (d[d.len() / 2], d[(d.len() * 99 / 100).min(d.len() - 1)])
+            });
+        latency_summary(d).map_or((f64::NAN, f64::NAN), |s| (s.median_ms, s.p99_ms))
     }
 
     fn max_speed(&self, from: u64, to: u64) -> f64 {
@@ -236,18 +232,18 @@ fn faults_across_hosts_stop_the_robot_and_recover() -> anyhow::Result<()> {
         &robot_net,
         &["prompt", "--clip", "test:1", "--every", "0.5"],
     )?;
+    // A forecaster on the edge host, started and loaded.
+    let start_forecaster = |h: &mut Harness, label: &str, args: &[&str]| -> anyhow::Result<()> {
+        spawn(h, label, &topo.edge, &edge_net, args)?;
+        anyhow::ensure!(
+            wait_for_log(h, label, "forecaster running", Duration::from_secs(90)),
+            "{label} did not start:\n{}",
+            h.log_tail(label)
+        );
+        Ok(())
+    };
     let fc_args = ["--model", hri.to_str().unwrap()];
-    spawn(&mut h, "forecaster", &topo.edge, &edge_net, &fc_args)?;
-    assert!(
-        wait_for_log(
-            &h,
-            "forecaster",
-            "forecaster running",
-            Duration::from_secs(90)
-        ),
-        "the forecaster did not start:\n{}",
-        h.log_tail("forecaster")
-    );
+    start_forecaster(&mut h, "forecaster", &fc_args)?;
     std::thread::sleep(Duration::from_secs(6));
 
     // Fault 1: the forecaster dies.
@@ -255,13 +251,7 @@ fn faults_across_hosts_stop_the_robot_and_recover() -> anyhow::Result<()> {
     h.kill("forecaster");
     std::thread::sleep(Duration::from_secs(4));
     let restart_at = now_ns();
-    spawn(&mut h, "forecaster#2", &topo.edge, &edge_net, &fc_args)?;
-    assert!(wait_for_log(
-        &h,
-        "forecaster#2",
-        "forecaster running",
-        Duration::from_secs(90)
-    ));
+    start_forecaster(&mut h, "forecaster#2", &fc_args)?;
     std::thread::sleep(Duration::from_secs(6));
 
     // Fault 2: the edge link goes down.
@@ -275,19 +265,7 @@ fn faults_across_hosts_stop_the_robot_and_recover() -> anyhow::Result<()> {
     // Fault 3: with a hot standby running (rank 1), the primary dies: the standby takes over.
     let standby_at = now_ns();
     let standby_args = ["--model", hri.to_str().unwrap(), "--rank", "1"];
-    spawn(
-        &mut h,
-        "forecaster#standby",
-        &topo.edge,
-        &edge_net,
-        &standby_args,
-    )?;
-    assert!(wait_for_log(
-        &h,
-        "forecaster#standby",
-        "forecaster running",
-        Duration::from_secs(90)
-    ));
+    start_forecaster(&mut h, "forecaster#standby", &standby_args)?;
     std::thread::sleep(Duration::from_secs(4));
     let failover_at = now_ns();
     h.kill("forecaster#2");

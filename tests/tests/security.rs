@@ -55,6 +55,24 @@ async fn put(bus: &Bus, key: &str, payload: impl Into<Vec<u8>>) -> anyhow::Resul
         .map_err(|e| anyhow::anyhow!("{e}"))
 }
 
+/// Count the samples arriving on `key` at `bus` (the subscriber lives as long as the guard).
+async fn counter(
+    bus: &Bus,
+    key: &str,
+) -> anyhow::Result<(Arc<AtomicU64>, zenoh::pubsub::Subscriber<()>)> {
+    let n = Arc::new(AtomicU64::new(0));
+    let c = n.clone();
+    let sub = bus
+        .session()
+        .declare_subscriber(key.to_string())
+        .callback(move |_| {
+            c.fetch_add(1, Ordering::Relaxed);
+        })
+        .await
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok((n, sub))
+}
+
 /// Open a client, retrying while the router starts.
 async fn connect(args: &BusArgs, service: &str) -> anyhow::Result<Bus> {
     let mut last = None;
@@ -108,16 +126,7 @@ async fn only_certified_identities_connect_and_only_safety_commands() -> anyhow:
 
     let robot_if = connect(&client(port, &good, "robot-interface", true), "mock-robot").await?;
     let robot = RobotId::new(ROBOT)?;
-    let received = Arc::new(AtomicU64::new(0));
-    let r = received.clone();
-    let _sub = robot_if
-        .session()
-        .declare_subscriber(keys::command(&robot))
-        .callback(move |_| {
-            r.fetch_add(1, Ordering::Relaxed);
-        })
-        .await
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (received, _sub) = counter(&robot_if, &keys::command(&robot)).await?;
 
     // A certificate from another authority, and plain TCP, are refused at connection.
     let e = Bus::open(&client(port, &rogue, "safety", true), "safety").await;
@@ -136,16 +145,7 @@ async fn only_certified_identities_connect_and_only_safety_commands() -> anyhow:
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
     // Its own stream still flows (it is not simply disconnected).
-    let forecasts = Arc::new(AtomicU64::new(0));
-    let f = forecasts.clone();
-    let _fsub = robot_if
-        .session()
-        .declare_subscriber(keys::forecast(&robot))
-        .callback(move |_| {
-            f.fetch_add(1, Ordering::Relaxed);
-        })
-        .await
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (forecasts, _fsub) = counter(&robot_if, &keys::forecast(&robot)).await?;
     let safety = connect(&client(port, &good, "safety", true), "safety").await?;
     let deadline = tokio::time::Instant::now() + Duration::from_secs(10);
     while (received.load(Ordering::Relaxed) == 0 || forecasts.load(Ordering::Relaxed) == 0)
@@ -174,16 +174,7 @@ async fn only_certified_identities_connect_and_only_safety_commands() -> anyhow:
     // The ROS 2 side (zenoh-bridge-ros2dds keys): the controllers take trajectories from the
     // safety identity only.
     let traj = format!("{ROBOT}/arm_left_controller/joint_trajectory");
-    let trajectories = Arc::new(AtomicU64::new(0));
-    let tr = trajectories.clone();
-    let _tsub = robot_if
-        .session()
-        .declare_subscriber(traj.clone())
-        .callback(move |_| {
-            tr.fetch_add(1, Ordering::Relaxed);
-        })
-        .await
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (trajectories, _tsub) = counter(&robot_if, &traj).await?;
     tokio::time::sleep(Duration::from_millis(300)).await;
     for _ in 0..10 {
         put(&forecaster, &traj, vec![0u8; 8]).await?;

@@ -140,6 +140,19 @@ impl Stats {
     }
 }
 
+/// Resident memory of process `pid` in MiB (Linux `/proc`; `None` elsewhere or when it is gone).
+pub fn process_rss_mib(pid: u32) -> Option<f64> {
+    let s = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let kb: f64 = s
+        .lines()
+        .find(|l| l.starts_with("VmRSS:"))?
+        .split_whitespace()
+        .nth(1)?
+        .parse()
+        .ok()?;
+    Some(kb / 1024.0)
+}
+
 /// Median and p99 (nearest rank) of samples; `None` when empty.
 pub fn latency_summary(samples: impl Iterator<Item = f64>) -> Option<LatencySummary> {
     let mut v: Vec<f64> = samples.filter(|x| x.is_finite()).collect();

@@ -6,7 +6,6 @@
 use anyhow::Result;
 use candle_core::Device;
 use echo_eval::metrics::{head_rotation_error, Confusion};
-use echo_geometry::Capsule;
 use echo_models::model::Forecaster;
 use echo_motion::sensors::{body_capsules, contact_and_proximity, part_distances};
 use echo_retarget::Retargeter;
@@ -162,20 +161,7 @@ pub fn evaluate(
                 ajpe[hi] += ea / POINTS.len() as f64;
                 fde[hi] += (tp.translation.vector - tt.translation.vector).norm();
             }
-            let robot: Vec<_> = body
-                .at(model, &qp)
-                .into_iter()
-                .map(|(part, c)| {
-                    (
-                        part,
-                        Capsule {
-                            a: world(&tp, &c.a),
-                            b: world(&tp, &c.b),
-                            radius: c.radius,
-                        },
-                    )
-                })
-                .collect();
+            let robot = body.at_pose(model, &qp, &tp);
             let d = part_distances(&body_capsules(&w.human_world[k]), &robot);
             let min = d.iter().flatten().fold(f64::INFINITY, |m, x| m.min(*x));
             let (c, p) = contact_and_proximity(&w.human_world[k], &w.reference_world[k]);

@@ -8,7 +8,6 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use candle_core::{Device, Tensor};
 use echo_eval::metrics::Confusion;
-use echo_geometry::Capsule;
 use echo_motion::sensors::{body_capsules, contact_and_proximity, part_distances};
 use echo_motion::skeleton::{heading, j, NUM_JOINTS};
 use echo_motion::synth::Clip;
@@ -123,20 +122,7 @@ pub fn social_scores(
                 .zip(hri.robot[f].iter().copied()),
         )?;
         let t = hri.base_pose(f);
-        let robot: Vec<_> = body
-            .at(model, &q)
-            .into_iter()
-            .map(|(p, c)| {
-                (
-                    p,
-                    Capsule {
-                        a: world(&t, &c.a),
-                        b: world(&t, &c.b),
-                        radius: c.radius,
-                    },
-                )
-            })
-            .collect();
+        let robot = body.at_pose(model, &q, &t);
         let d = part_distances(&body_capsules(&hri.human[f]), &robot);
         let min = d.iter().flatten().fold(f64::INFINITY, |m, x| m.min(*x));
         let (c_hh, p_hh) = contact_and_proximity(&hri.human[f], &hri.reference[f]);

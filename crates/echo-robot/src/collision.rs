@@ -18,7 +18,7 @@
 //! Points are in the link's own frame. The radii cover the real links with a few centimetres to
 //! spare; the safety margins come on top.
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::{JointValues, RobotModel};
 
@@ -168,13 +168,23 @@ impl RobotBody {
 
     /// Capsules in the root frame for joint values `q`.
     pub fn at(&self, model: &RobotModel, q: &JointValues) -> Vec<(Part, Capsule)> {
+        self.at_pose(model, q, &Isometry3::identity())
+    }
+
+    /// Capsules in the world for joint values `q` with the root at `root` (the base's pose).
+    pub fn at_pose(
+        &self,
+        model: &RobotModel,
+        q: &JointValues,
+        root: &Isometry3<f64>,
+    ) -> Vec<(Part, Capsule)> {
         let poses = model.fk_all(q);
         self.capsules
             .iter()
             .map(|c| {
                 let [(la, pa), (lb, pb)] = &c.ends;
-                let a = (poses[*la] * Point3::from(*pa)).coords;
-                let b = (poses[*lb] * Point3::from(*pb)).coords;
+                let a = (root * poses[*la] * Point3::from(*pa)).coords;
+                let b = (root * poses[*lb] * Point3::from(*pb)).coords;
                 (
                     c.part,
                     Capsule {

@@ -85,13 +85,6 @@ async fn e2e(args: &Args) -> Result<()> {
             rss_every: None,
         })
         .await?;
-        // Overhead per forecast: its latency minus its own inference time.
-        let overhead: Vec<f64> = r
-            .to_forecast_ms
-            .iter()
-            .zip(&r.inference_ms)
-            .map(|(l, i)| l - i)
-            .collect();
         println!(
             "| {n} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.frames_sent,
@@ -99,7 +92,7 @@ async fn e2e(args: &Args) -> Result<()> {
             med_p99(&r.to_humans_ms),
             med_p99(&r.to_forecast_ms),
             med_p99(&r.inference_ms),
-            med_p99(&overhead),
+            med_p99(&r.overhead_ms),
             med_p99(&r.forecast_to_command_ms),
             med_p99(&r.to_command_ms),
         );

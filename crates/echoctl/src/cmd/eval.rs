@@ -87,10 +87,9 @@ fn hri(args: &Args, split: Split) -> Result<()> {
         let frozen = ck
             .meta
             .hri_training
-            .as_ref()
-            .and_then(|t| t.get("frozen_retargeter"))
-            .and_then(|v| v.as_bool())
-            .unwrap_or(false);
+            .clone()
+            .and_then(|t| serde_json::from_value::<echo_hri::train::HriTrainConfig>(t).ok())
+            .is_some_and(|t| t.frozen_retargeter);
         let codec = frozen.then(|| echo_hri::codec::RobotCodec::new(&r));
         let mut fc = vec![];
         for chunk in refs.chunks(64) {

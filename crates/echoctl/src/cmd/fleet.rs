@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
 use echo_bus::config::loopback_mesh;
-use echo_bus::stats::percentile_sorted;
+use echo_bus::stats::{latency_summary, process_rss_mib};
 use echo_bus::{keys, topics, Bus, BusArgs, RobotId};
 use echo_msgs::{now_ns, ControlMode, Header, InteractionIntent, JointState, KeypointFrame};
 use echo_sim::perception::MockPerceptionConfig;
@@ -60,41 +60,22 @@ pub struct FleetReport {
     pub to_forecast_ms: Vec<f64>,
     /// Model inference per forecast, ms.
     pub inference_ms: Vec<f64>,
+    /// Per forecast: its latency minus its own inference time, ms.
+    pub overhead_ms: Vec<f64>,
     /// Forecast → next command of the same robot, ms.
     pub forecast_to_command_ms: Vec<f64>,
     /// Perception → that command, ms.
     pub to_command_ms: Vec<f64>,
-    /// Safety state changes to stopping/holding after warm-up, all robots.
-    pub safety_stops: u64,
     /// Resident memory per process over time: (seconds since start, MiB).
     pub rss_mib: BTreeMap<String, Vec<(f64, f64)>>,
 }
 
 /// Median and p99 of `v` ("–" when empty).
 pub fn med_p99(v: &[f64]) -> String {
-    if v.is_empty() {
-        return "–".into();
+    match latency_summary(v.iter().copied()) {
+        Some(s) => format!("{:.2} / {:.2}", s.median_ms, s.p99_ms),
+        None => "–".into(),
     }
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    format!(
-        "{:.2} / {:.2}",
-        percentile_sorted(&s, 50.0),
-        percentile_sorted(&s, 99.0)
-    )
-}
-
-/// Resident memory of `pid`, MiB.
-pub fn rss_mib(pid: u32) -> Option<f64> {
-    let s = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    let kb: f64 = s
-        .lines()
-        .find(|l| l.starts_with("VmRSS:"))?
-        .split_whitespace()
-        .nth(1)?
-        .parse()
-        .ok()?;
-    Some(kb / 1024.0)
 }
 
 struct Children(Vec<(String, std::process::Child)>);
@@ -140,25 +121,20 @@ fn spawn(
     Ok(())
 }
 
+/// The one field of a forecast the load generator reads.
 #[derive(serde::Deserialize)]
-struct Stamped {
-    header: StampOnly,
-    #[serde(default)]
-    inference_ms: Option<f64>,
+struct Inference {
+    inference_ms: f64,
 }
 
-#[derive(serde::Deserialize)]
-struct StampOnly {
-    stamp_ns: u64,
-}
-
+/// Arrival times (ns) per robot, in arrival order.
 #[derive(Default)]
 struct Arrivals {
     sent: Vec<Vec<u64>>,
     humans: Vec<(usize, u64)>,
-    forecasts: Vec<(usize, u64, u64, f64)>,
-    commands: Vec<(usize, u64)>,
-    stops: u64,
+    /// (robot, arrival, inference ms).
+    forecasts: Vec<(usize, u64, f64)>,
+    commands: Vec<Vec<u64>>,
 }
 
 /// Start the fleet, load it for `seconds` after a warm-up, and return what was measured.
@@ -250,6 +226,7 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
     // What comes back, timed in the subscriber callbacks.
     let arrivals = Arc::new(Mutex::new(Arrivals {
         sent: vec![vec![]; opts.robots],
+        commands: vec![vec![]; opts.robots],
         ..Default::default()
     }));
     let measuring = Arc::new(std::sync::atomic::AtomicBool::new(false));
@@ -260,18 +237,13 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
         let mut wanted: Vec<(String, Record)> = vec![
             (
                 keys::humans(r),
-                Box::new(move |a, t, b| {
-                    if serde_json::from_slice::<Stamped>(b).is_ok() {
-                        a.humans.push((i, t));
-                    }
-                }),
+                Box::new(move |a, t, _| a.humans.push((i, t))),
             ),
             (
                 keys::forecast(r),
                 Box::new(move |a, t, b| {
-                    if let Ok(st) = serde_json::from_slice::<Stamped>(b) {
-                        let inference = st.inference_ms.unwrap_or(f64::NAN);
-                        a.forecasts.push((i, st.header.stamp_ns, t, inference));
+                    if let Ok(f) = serde_json::from_slice::<Inference>(b) {
+                        a.forecasts.push((i, t, f.inference_ms));
                     }
                 }),
             ),
@@ -279,17 +251,7 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
         if i < opts.with_safety {
             wanted.push((
                 keys::command(r),
-                Box::new(move |a, t, _| a.commands.push((i, t))),
-            ));
-            wanted.push((
-                keys::safety_status(r),
-                Box::new(|a, _, b| {
-                    if let Ok(st) = serde_json::from_slice::<echo_msgs::SafetyStatus>(b) {
-                        if st.reasons.iter().any(|r| r.contains("no valid plan")) {
-                            a.stops += 1;
-                        }
-                    }
-                }),
+                Box::new(move |a, t, _| a.commands[i].push(t)),
             ));
         }
         for (key, record) in wanted {
@@ -377,7 +339,7 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
             _ = rss_tick.tick(), if opts.rss_every.is_some() => {
                 let t = started.elapsed().as_secs_f64();
                 for (label, c) in &children.0 {
-                    if let Some(m) = rss_mib(c.id()) {
+                    if let Some(m) = process_rss_mib(c.id()) {
                         report.rss_mib.entry(label.clone()).or_default().push((t, m));
                     }
                 }
@@ -409,27 +371,25 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
         .map(|d| d as f64 / 1e6)
         .collect();
     report.forecasts = a.forecasts.len() as u64;
-    report.safety_stops = a.stops;
-    for (i, _stamp, t, inf) in &a.forecasts {
-        let Some(d) = since_frame(*i, *t) else {
+    for &(i, t, inference) in &a.forecasts {
+        let Some(d) = since_frame(i, t) else {
             continue;
         };
         let lat = d as f64 / 1e6;
         report.to_forecast_ms.push(lat);
-        if inf.is_finite() {
-            report.inference_ms.push(*inf);
-        }
-        if *i < opts.with_safety {
-            if let Some((_, tc)) = a.commands.iter().find(|(j, tc)| j == i && tc >= t) {
-                report.forecast_to_command_ms.push((tc - t) as f64 / 1e6);
-                report.to_command_ms.push(lat + (tc - t) as f64 / 1e6);
-            }
+        report.inference_ms.push(inference);
+        report.overhead_ms.push(lat - inference);
+        // The robot's first command at or after the forecast arrived.
+        let cmds = &a.commands[i];
+        if let Some(tc) = cmds.get(cmds.partition_point(|c| *c < t)) {
+            report.forecast_to_command_ms.push((tc - t) as f64 / 1e6);
+            report.to_command_ms.push(lat + (tc - t) as f64 / 1e6);
         }
     }
     // A missed deadline: a robot went longer than the safety's plan deadline (200 ms) without a
     // forecast, i.e. the safety service would have started to stop it.
     let mut per_robot: Vec<Vec<u64>> = vec![vec![]; opts.robots];
-    for (i, _, t, _) in &a.forecasts {
+    for (i, t, _) in &a.forecasts {
         per_robot[*i].push(*t);
     }
     report.missed_deadlines = per_robot
