@@ -8,7 +8,7 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use candle_core::{Device, Tensor};
 use echo_eval::metrics::Confusion;
-use echo_motion::sensors::{body_capsules, contact_and_proximity, part_distances};
+use echo_motion::sensors::{body_capsules, contact_and_proximity, part_distances, BodyPart};
 use echo_motion::skeleton::{heading, j, NUM_JOINTS};
 use echo_motion::synth::Clip;
 use echo_robot::collision::RobotBody;
@@ -128,10 +128,7 @@ pub fn social_scores(
         let (c_hh, p_hh) = contact_and_proximity(&hri.human[f], &hri.reference[f]);
         s.contact.add(min <= 0.0, c_hh);
         s.proximity.add(min <= 0.05, p_hh);
-        for (g, w) in [
-            ("gripper_left_grasping_frame", j::L_WRIST),
-            ("gripper_right_grasping_frame", j::R_WRIST),
-        ] {
+        for (g, w) in GRASPING_FRAMES.into_iter().zip([j::L_WRIST, j::R_WRIST]) {
             let e = world(&t, &model.fk(&q, g)?.translation.vector);
             hand += (e - hri.reference[f][w]).norm() / 2.0;
         }
@@ -139,6 +136,97 @@ pub fn social_scores(
     }
     s.hand_error_m = hand / s.frames.max(1) as f64;
     Ok(s)
+}
+
+/// The robot's grasping frames.
+pub const GRASPING_FRAMES: [&str; 2] = [
+    "gripper_left_grasping_frame",
+    "gripper_right_grasping_frame",
+];
+
+/// How close the robot's grippers are to the partner's hands.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Reach {
+    /// Smallest distance from a grasping frame to a wrist joint, m.
+    pub grasp_to_wrist_m: f64,
+    /// Smallest surface distance between a gripper capsule and a hand capsule, m (≤ 0: the
+    /// surfaces touch, the contact sensor `S_0`).
+    pub surface_m: f64,
+}
+
+impl Reach {
+    /// Nothing measured yet.
+    pub const NONE: Reach = Reach {
+        grasp_to_wrist_m: f64::INFINITY,
+        surface_m: f64::INFINITY,
+    };
+
+    /// The closer of the two on each measure.
+    pub fn min(self, o: Reach) -> Reach {
+        Reach {
+            grasp_to_wrist_m: self.grasp_to_wrist_m.min(o.grasp_to_wrist_m),
+            surface_m: self.surface_m.min(o.surface_m),
+        }
+    }
+
+    /// The surfaces touched.
+    pub fn contact(&self) -> bool {
+        self.surface_m <= echo_motion::sensors::CONTACT_MARGIN
+    }
+}
+
+/// How close the robot (joint values `q`, base at `base` in the world) brings its grippers to
+/// the partner's hands (`partner`: SMPL-22 joints in the world).
+pub fn gripper_reach(
+    model: &RobotModel,
+    body: &RobotBody,
+    q: &echo_robot::JointValues,
+    base: &Isometry3<f64>,
+    partner: &[Vector3<f64>],
+) -> Result<Reach> {
+    let mut r = Reach::NONE;
+    for g in GRASPING_FRAMES {
+        let e = world(base, &model.fk(q, g)?.translation.vector);
+        for w in [j::L_WRIST, j::R_WRIST] {
+            if let Some(p) = partner.get(w) {
+                r.grasp_to_wrist_m = r.grasp_to_wrist_m.min((e - p).norm());
+            }
+        }
+    }
+    let hands: Vec<_> = body_capsules(partner)
+        .into_iter()
+        .filter(|(p, _)| matches!(p, BodyPart::Hand(_)))
+        .collect();
+    for (part, c) in body.at_pose(model, q, base) {
+        if matches!(part, echo_robot::collision::Part::Gripper(_)) {
+            for (_, h) in &hands {
+                r.surface_m = r.surface_m.min(c.distance(h));
+            }
+        }
+    }
+    Ok(r)
+}
+
+/// How close the retargeted reference alone brings the grippers to the partner's hands when
+/// the robot stands still at `base` (world) and plays the reference joints frame by frame.
+pub fn reference_reach(
+    hri: &HriClip,
+    r: &Retargeter,
+    model: &RobotModel,
+    body: &RobotBody,
+    base: &Isometry3<f64>,
+) -> Result<Reach> {
+    let mut best = Reach::NONE;
+    for f in 0..hri.human.len().min(hri.robot.len()) {
+        let q = model.values_from(
+            r.joint_names()
+                .iter()
+                .map(|n| n.as_str())
+                .zip(hri.robot[f].iter().copied()),
+        )?;
+        best = best.min(gripper_reach(model, body, &q, base, &hri.human[f])?);
+    }
+    Ok(best)
 }
 
 /// Metadata of a written HRI dataset.

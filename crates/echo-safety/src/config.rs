@@ -27,10 +27,15 @@ pub struct SeparationConfig {
     pub forecast_frames: usize,
     /// Skeletons older than this are ignored (the person is treated as unseen), s.
     pub human_timeout_s: f64,
-    /// In contact interactions: end-effector speed cap near the person, m/s.
+    /// Contact mode: speed cap of every robot capsule end near the partner, m/s.
     pub contact_speed_mps: f64,
-    /// In contact interactions: the end-effector cap applies within this distance, m.
+    /// Contact mode: the speed cap applies within this distance of the partner, m.
     pub contact_zone_m: f64,
+    /// Contact mode: every robot part keeps this far from the partner's head, m.
+    pub head_clearance_m: f64,
+    /// Contact mode: every robot part keeps this far from the partner's regions that are not
+    /// meant to be touched (e.g. torso and legs in a handshake), m.
+    pub body_clearance_m: f64,
 }
 
 impl Default for SeparationConfig {
@@ -46,7 +51,9 @@ impl Default for SeparationConfig {
             forecast_frames: 8,
             human_timeout_s: 0.5,
             contact_speed_mps: 0.25,
-            contact_zone_m: 0.4,
+            contact_zone_m: 0.5,
+            head_clearance_m: 0.3,
+            body_clearance_m: 0.1,
         }
     }
 }

@@ -23,7 +23,7 @@ use crate::config::SafetyConfig;
 use crate::filter::{Filter, Group, GroupStep, Reference};
 use crate::joint::JointState1;
 use crate::plan::{accept, ActivePlan, PlanError};
-use crate::separation::{assess, human_capsules, Assessment, HumanPart};
+use crate::separation::{assess, human_capsules, Assessment, Person};
 
 /// The outcome of one control cycle.
 #[derive(Debug, Clone)]
@@ -56,7 +56,8 @@ pub struct Supervisor {
     state_at: Option<Instant>,
     measured: Vec<Option<f64>>,
     base_yaw: f64,
-    humans: Option<(Instant, Vec<Vec<[f64; 3]>>)>,
+    /// Current skeletons.
+    humans: Option<(Instant, Vec<Skeleton>)>,
     forecast: Option<(Instant, Vec<Vec<[f64; 3]>>)>,
     lost: HashSet<String>,
     twist: (f64, f64),
@@ -64,6 +65,9 @@ pub struct Supervisor {
     q_full: JointValues,
     filter_to_model: Vec<usize>,
 }
+
+/// One tracked person's joints, and whether they are the interaction partner.
+type Skeleton = (bool, Vec<[f64; 3]>);
 
 impl Supervisor {
     /// A supervisor for `model` (arms, torso and head are filtered).
@@ -221,16 +225,20 @@ impl Supervisor {
         }
     }
 
-    /// Current skeletons (every tracked person counts for separation).
+    /// Current skeletons (every tracked person counts for separation; the partner may be
+    /// touched in a contact interaction).
     pub fn on_humans(&mut self, s: &HumanSkeletons, now: Instant) {
         self.humans = Some((
             now,
-            s.tracks.iter().map(|t| t.pose.joints.clone()).collect(),
+            s.tracks
+                .iter()
+                .map(|t| (s.partner_id == Some(t.track_id), t.pose.joints.clone()))
+                .collect(),
         ));
     }
 
     /// Interaction intent: sets the mode (a mode change drops the active plan) and whether
-    /// end-effector contact is allowed.
+    /// the partner may be touched (contact mode).
     pub fn on_intent(&mut self, i: &InteractionIntent) {
         if i.mode != self.mode {
             self.plan = None;
@@ -336,18 +344,25 @@ impl Supervisor {
         r
     }
 
-    fn people(&self, now: Instant) -> Vec<Vec<(HumanPart, echo_robot::collision::Capsule)>> {
+    fn people(&self, now: Instant) -> Vec<Person> {
         let timeout = self.cfg.separation.human_timeout_s;
         let fresh = |t: &Instant| now.saturating_duration_since(*t).as_secs_f64() <= timeout;
         let mut out = vec![];
         if let Some((t, people)) = &self.humans {
             if fresh(t) {
-                out.extend(people.iter().map(|p| human_capsules(p)));
+                out.extend(people.iter().map(|(partner, p)| Person {
+                    partner: *partner,
+                    capsules: human_capsules(p),
+                }));
             }
         }
         if let Some((t, frames)) = &self.forecast {
             if fresh(t) {
-                out.extend(frames.iter().map(|p| human_capsules(p)));
+                // A forecast is of the partner.
+                out.extend(frames.iter().map(|p| Person {
+                    partner: true,
+                    capsules: human_capsules(p),
+                }));
             }
         }
         out
@@ -375,34 +390,40 @@ impl Supervisor {
         let caps_now = self.robot_capsules(&q_now);
         let caps_next = self.robot_capsules(&q_next);
         let mut vr: f64 = 0.0;
-        let mut v_ee: f64 = 0.0;
-        for ((p, a), (_, b)) in caps_now.iter().zip(&caps_next) {
-            let v = ((b.a - a.a).norm().max((b.b - a.b).norm())) / dt;
-            vr = vr.max(v);
-            if p.is_end_effector() {
-                v_ee = v_ee.max(v);
-            }
+        for ((_, a), (_, b)) in caps_now.iter().zip(&caps_next) {
+            vr = vr.max((b.a - a.a).norm().max((b.b - a.b).norm()) / dt);
         }
         let people = self.people(now);
         let ts = self.filter.stop_time();
         let sep: Assessment = assess(
             &self.cfg.separation,
             &caps_now,
+            &caps_next,
             &people,
             self.interaction,
             vr,
-            v_ee,
             ts,
         );
         let scale = sep.scale;
         if scale < 1.0 && sep.min_distance.is_finite() {
+            let pair = sep
+                .closest
+                .map(|(r, h)| format!(", robot {r:?} to person's {h:?}"))
+                .unwrap_or_default();
             reasons.push(format!(
-                "separation {:.2} m (protective {:.2} m): speed × {:.2}",
+                "separation {:.2} m{pair} (protective {:.2} m): speed × {:.2}",
                 sep.min_distance, sep.protective, scale
             ));
         }
-        // At or inside the protective distance: a protective stop (brake to rest), not a crawl.
-        let stopping = if scale == 0.0 && sep.min_distance.is_finite() {
+        if let Some(c) = sep.clearance.filter(|c| c.violated()) {
+            reasons.push(format!(
+                "clearance {:.2} m, robot {:?} to partner's {:?} (required {:.2} m)",
+                c.distance, c.robot, c.human, c.required
+            ));
+        }
+        // At or inside the protective distance or a clearance: a protective stop (brake to
+        // rest), not a crawl.
+        let stopping = if sep.stop() {
             reasons.push(
                 "protective stop: a person is within the protective separation distance".into(),
             );
@@ -410,16 +431,25 @@ impl Supervisor {
         } else {
             stopping
         };
+        // The contact cap by feedback: every moving group slows by contact_speed / vr (its
+        // scale becomes that fraction of its current speed relative to its limits).
         let mut scales: Vec<f64> = vec![scale; n_groups];
-        for (g, group) in self.filter.groups().iter().enumerate() {
-            if group.name.starts_with("arm") && sep.arm_scale < 1.0 {
-                scales[g] = scales[g].min(sep.arm_scale);
+        if sep.contact_scale < 1.0 {
+            let (state, limits) = (self.filter.state(), self.filter.limits());
+            for (g, group) in self.filter.groups().iter().enumerate() {
+                let ratio = group
+                    .joints
+                    .iter()
+                    .map(|&i| state[i].v.abs() / limits[i].velocity.max(1e-9))
+                    .fold(0.0, f64::max);
+                scales[g] = scales[g].min(ratio * sep.contact_scale);
             }
         }
-        if sep.arm_scale < 1.0 {
+        let scale = scale.min(sep.contact_scale);
+        if sep.contact_scale < 1.0 {
             reasons.push(format!(
-                "contact zone: end effector {:.2} m from the partner, slowed",
-                sep.contact_distance
+                "contact mode: partner {:.2} m away, speed capped at {:.2} m/s",
+                sep.partner_distance, self.cfg.separation.contact_speed_mps
             ));
         }
 

@@ -149,7 +149,7 @@ pub fn clip_actors(clip: &Clip, distance_m: f64) -> Vec<Actor> {
 }
 
 /// How far behind person B's pelvis the robot stands when it plays B, m.
-pub const ROBOT_SETBACK_M: f64 = 0.25;
+pub const ROBOT_SETBACK_M: f64 = 0.0;
 
 /// The frame where the two people of a clip are closest (pelvis to pelvis).
 pub fn closest_frame(clip: &Clip) -> usize {
@@ -161,20 +161,29 @@ pub fn closest_frame(clip: &Clip) -> usize {
         .unwrap_or(0)
 }
 
-/// Person A of a generated interaction, placed so that the robot stands where person B stood
-/// when the two were closest (B's pelvis on the robot's base, B's heading along the robot's +x):
-/// the robot, which does not walk, plays B at the moment of the interaction.
-pub fn clip_partner_for_robot(clip: &Clip) -> Vec<Actor> {
+/// Where the robot stands in a generated interaction's world when it plays person B: on B's
+/// pelvis (on the floor) when the two were closest, facing along B's heading, `ROBOT_SETBACK_M`
+/// behind it. The robot does not walk: it plays B at the moment of the interaction.
+pub fn robot_base_in_clip(clip: &Clip) -> nalgebra::Isometry3<f64> {
     let b0 = clip.joints(closest_frame(clip), 1);
     let yaw = echo_motion::skeleton::heading(&b0).euler_angles().2;
-    let rot = nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), -yaw);
-    let o = Vector3::new(b0[0].x, b0[0].y, 0.0);
-    // The robot's base is wider than a person's stance: it stands ROBOT_SETBACK_M behind B.
-    let back = Vector3::new(ROBOT_SETBACK_M, 0.0, 0.0);
+    nalgebra::Isometry3::from_parts(
+        nalgebra::Translation3::new(b0[0].x, b0[0].y, 0.0),
+        nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw),
+    ) * nalgebra::Translation3::new(-ROBOT_SETBACK_M, 0.0, 0.0)
+}
+
+/// Person A of a generated interaction in the robot's frame, the robot standing where
+/// [`robot_base_in_clip`] puts it.
+pub fn clip_partner_for_robot(clip: &Clip) -> Vec<Actor> {
+    let to_robot = robot_base_in_clip(clip).inverse();
     vec![Actor::Recorded(Recorded {
         fps: FPS,
         frames: (0..clip.frames.len())
-            .map(|f| clip.joints(f, 0).map(|p| rot * (p - o) + back))
+            .map(|f| {
+                clip.joints(f, 0)
+                    .map(|p| to_robot.transform_point(&nalgebra::Point3::from(p)).coords)
+            })
             .collect(),
     })]
 }

@@ -223,22 +223,27 @@ struct Observed {
     started: Option<Instant>,
     /// Human–robot mode: the reach of the robot's grippers is reported.
     hri: bool,
+    /// Human–robot mode: what the retargeted reference alone reaches.
+    reference: Option<echo_retarget::hri::Reach>,
 }
 
 /// How close the robot's grippers come to the partner's hands (HRI mode).
 struct Reach {
     model: echo_robot::RobotModel,
-    grippers: Option<[[f64; 3]; 2]>,
-    min_m: f64,
+    body: Option<echo_robot::collision::RobotBody>,
+    q: Option<echo_robot::JointValues>,
+    best: echo_retarget::hri::Reach,
     at_s: f64,
 }
 
 impl Default for Reach {
     fn default() -> Self {
+        let model = echo_robot::RobotModel::tiago_dual();
         Reach {
-            model: echo_robot::RobotModel::tiago_dual(),
-            grippers: None,
-            min_m: f64::INFINITY,
+            body: echo_robot::collision::RobotBody::tiago(&model).ok(),
+            model,
+            q: None,
+            best: echo_retarget::hri::Reach::NONE,
             at_s: 0.0,
         }
     }
@@ -256,45 +261,47 @@ impl Reach {
             return;
         };
         let m = &self.model;
-        let Ok(q) = m.values_from(
-            names
-                .iter()
-                .zip(&pos)
-                .filter(|(n, _)| m.joint_index(n).is_some())
-                .map(|(n, p)| (n.as_str(), *p)),
-        ) else {
-            return;
-        };
-        let g = |f: &str| {
-            m.fk(&q, f)
-                .map(|t| [t.translation.x, t.translation.y, t.translation.z])
-                .unwrap_or([f64::NAN; 3])
-        };
-        self.grippers = Some([
-            g("gripper_left_grasping_frame"),
-            g("gripper_right_grasping_frame"),
-        ]);
+        self.q = m
+            .values_from(
+                names
+                    .iter()
+                    .zip(&pos)
+                    .filter(|(n, _)| m.joint_index(n).is_some())
+                    .map(|(n, p)| (n.as_str(), *p)),
+            )
+            .ok();
     }
 
     fn on_humans(&mut self, v: &serde_json::Value, t: f64) {
-        let (Some(g), Some(pid)) = (self.grippers, v.get("partner_id").and_then(|x| x.as_u64()))
-        else {
+        let (Some(q), Some(body), Some(pid)) = (
+            &self.q,
+            &self.body,
+            v.get("partner_id").and_then(|x| x.as_u64()),
+        ) else {
             return;
         };
         let Some(j) = joints_of(v, pid) else { return };
-        for w in [20, 21] {
-            for e in g {
-                let d = ((j[w][0] - e[0]).powi(2)
-                    + (j[w][1] - e[1]).powi(2)
-                    + (j[w][2] - e[2]).powi(2))
-                .sqrt();
-                if d < self.min_m {
-                    self.min_m = d;
-                    self.at_s = t;
-                }
+        let j: Vec<nalgebra::Vector3<f64>> = j.iter().map(|p| (*p).into()).collect();
+        let root = nalgebra::Isometry3::identity();
+        if let Ok(r) = echo_retarget::hri::gripper_reach(&self.model, body, q, &root, &j) {
+            if r.grasp_to_wrist_m < self.best.grasp_to_wrist_m {
+                self.at_s = t;
             }
+            self.best = self.best.min(r);
         }
     }
+}
+
+/// What the retargeted reference alone would reach in the demo's scene (person B's motion
+/// retargeted by `<models>/retargeter` and played from where the robot stands).
+fn reference_reach(clip: &str, models: &Path) -> Result<echo_retarget::hri::Reach> {
+    let model = echo_robot::RobotModel::tiago_dual();
+    let body = echo_robot::collision::RobotBody::tiago(&model)?;
+    let clip = mock_perception::clip_of(clip)?;
+    let r = echo_retarget::retargeter::Retargeter::load(&models.join("retargeter"), model.clone())?;
+    let hri = echo_retarget::hri::convert(&clip, &r)?;
+    let base = echo_sim::perception::robot_base_in_clip(&clip);
+    echo_retarget::hri::reference_reach(&hri, &r, &model, &body, &base)
 }
 
 enum Running {
@@ -381,9 +388,17 @@ pub async fn run(args: Args) -> Result<()> {
 
     // Count from now: the rates in the summary are over the demo's own duration.
     let started = Instant::now();
+    // The retargeter shipped beside the HRI checkpoint gives the reference to compare with.
+    let reference = args.hri.as_ref().and_then(|m| {
+        let dir = m.parent().unwrap_or(Path::new("."));
+        reference_reach(&args.hri_clip, dir)
+            .map_err(|e| tracing::warn!("no reference reach: {e:#}"))
+            .ok()
+    });
     *observed.lock().unwrap_or_else(|e| e.into_inner()) = Observed {
         started: Some(started),
         hri: args.hri.is_some(),
+        reference,
         ..Observed::default()
     };
     let mut stop = shutdown::on_signals();
@@ -770,11 +785,16 @@ fn summary(o: &Observed, elapsed: f64) -> serde_json::Value {
         );
     }
     let (rejected, dropped) = totals(o);
-    let reach = (o.hri && o.reach.min_m.is_finite()).then(|| {
+    let reach = (o.hri && o.reach.best.grasp_to_wrist_m.is_finite()).then(|| {
+        let r = o.reach.best;
         serde_json::json!({
-            "closest_gripper_to_partner_hand_m": o.reach.min_m,
+            "grasp_to_wrist_m": r.grasp_to_wrist_m,
+            "gripper_hand_surface_m": r.surface_m,
             "at_s": o.reach.at_s,
-            "contact": o.reach.min_m <= 0.10,
+            "contact": r.contact(),
+            "proximity": r.surface_m <= echo_motion::sensors::PROXIMITY_MARGIN,
+            "reference_grasp_to_wrist_m": o.reference.map(|x| x.grasp_to_wrist_m),
+            "reference_gripper_hand_surface_m": o.reference.map(|x| x.surface_m),
         })
     });
     let forecast = o.forecasts.means().map(|(m, h, n)| {
@@ -863,12 +883,27 @@ fn render_summary(s: &serde_json::Value) -> String {
         ));
     }
     if let Some(r) = s["reach"].as_object() {
+        let f = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
+        let verdict = if r["contact"].as_bool() == Some(true) {
+            "contact (surfaces touch)"
+        } else if r["proximity"].as_bool() == Some(true) {
+            "within 5 cm, no contact"
+        } else {
+            "no contact"
+        };
         out.push_str(&format!(
-            "reach: the robot's gripper came within {:.3} m of the partner's hand (at t = {:.1} s): {}\n",
-            r["closest_gripper_to_partner_hand_m"].as_f64().unwrap_or(f64::NAN),
-            r["at_s"].as_f64().unwrap_or(0.0),
-            if r["contact"].as_bool() == Some(true) { "contact (≤ 0.10 m)" } else { "no contact" }
+            "reach: the robot's grasping frame came within {:.3} m of the partner's wrist (at t = {:.1} s), gripper–hand surfaces {:.3} m: {verdict}\n",
+            f("grasp_to_wrist_m"),
+            f("at_s"),
+            f("gripper_hand_surface_m"),
         ));
+        if r["reference_grasp_to_wrist_m"].is_number() {
+            out.push_str(&format!(
+                "reach of the retargeted reference alone from the same spot: {:.3} m to the wrist, surfaces {:.3} m\n",
+                f("reference_grasp_to_wrist_m"),
+                f("reference_gripper_hand_surface_m"),
+            ));
+        }
     }
     if let Some(st) = s["safety_state"].as_str() {
         out.push_str(&format!("safety: final state {st}\n"));
