@@ -38,6 +38,25 @@ pub struct HriClip {
 }
 
 impl HriClip {
+    /// The robot's joint values at frame `f` (columns named by the retargeter `r`).
+    pub fn robot_values(
+        &self,
+        f: usize,
+        r: &Retargeter,
+        model: &RobotModel,
+    ) -> Result<echo_robot::JointValues> {
+        let row = self
+            .robot
+            .get(f)
+            .with_context(|| format!("frame {f} of {}", self.robot.len()))?;
+        Ok(model.values_from(
+            r.joint_names()
+                .iter()
+                .map(|n| n.as_str())
+                .zip(row.iter().copied()),
+        )?)
+    }
+
     /// World pose of the robot base at frame `f`.
     pub fn base_pose(&self, f: usize) -> Isometry3<f64> {
         let [x, y, yaw] = self.base[f];
@@ -115,12 +134,7 @@ pub fn social_scores(
     let mut s = SocialScores::default();
     let mut hand = 0.0;
     for f in (0..hri.human.len()).step_by(stride.max(1)) {
-        let q = model.values_from(
-            r.joint_names()
-                .iter()
-                .map(|n| n.as_str())
-                .zip(hri.robot[f].iter().copied()),
-        )?;
+        let q = hri.robot_values(f, r, model)?;
         let t = hri.base_pose(f);
         let robot = body.at_pose(model, &q, &t);
         let d = part_distances(&body_capsules(&hri.human[f]), &robot);
@@ -218,12 +232,7 @@ pub fn reference_reach(
 ) -> Result<Reach> {
     let mut best = Reach::NONE;
     for f in 0..hri.human.len().min(hri.robot.len()) {
-        let q = model.values_from(
-            r.joint_names()
-                .iter()
-                .map(|n| n.as_str())
-                .zip(hri.robot[f].iter().copied()),
-        )?;
+        let q = hri.robot_values(f, r, model)?;
         best = best.min(gripper_reach(model, body, &q, base, &hri.human[f])?);
     }
     Ok(best)

@@ -91,7 +91,7 @@ pub fn rule(
 pub struct ClearancePair {
     /// Surface distance, m.
     pub distance: f64,
-    /// The robot's motion this cycle brings the pair closer.
+    /// Inside the clearance, the robot's motion this cycle brings the pair closer.
     pub approaching: bool,
     /// Required clearance, m.
     pub required: f64,
@@ -167,9 +167,11 @@ pub fn assess(
                     Rule::Contact => d_partner = d_partner.min(dist),
                     Rule::Clearance(required) => {
                         d_partner = d_partner.min(dist);
-                        let approaching = robot_next
-                            .get(k)
-                            .is_some_and(|(_, next)| next.distance(hc) < dist);
+                        // Only inside the clearance does the direction matter.
+                        let approaching = dist < required
+                            && robot_next
+                                .get(k)
+                                .is_some_and(|(_, next)| next.distance(hc) < dist);
                         let cand = ClearancePair {
                             distance: dist,
                             approaching,
