@@ -1,5 +1,5 @@
-//! A representative scene for benchmarks: the robot waving its right arm at 15 Hz plans while
-//! a person stands 1.5 m in front with a forecast.
+//! Representative scenes for benchmarks: the robot waving its right arm at 15 Hz plans while a
+//! person stands 1.5 m in front with a forecast, or a handshake partner 0.7 m in front.
 
 use std::time::Instant;
 
@@ -63,11 +63,32 @@ pub fn partner_skeletons(joints: Vec<[f64; 3]>) -> HumanSkeletons {
     }
 }
 
+/// Where the person of a bench scene stands and what the intent says.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Scene {
+    /// A person 1.5 m in front, no interaction announced (speed and separation monitoring).
+    PersonInView,
+    /// A handshake partner 0.7 m in front (contact mode: clearances and the speed cap).
+    HandshakePartner,
+}
+
 /// The supervisor and a closure that feeds it one cycle of inputs (state every cycle, a plan
 /// and skeletons every third cycle).
-pub fn moving_scene() -> (Supervisor, impl FnMut(&mut Supervisor, Instant)) {
+pub fn moving_scene(scene: Scene) -> (Supervisor, impl FnMut(&mut Supervisor, Instant)) {
     let model = RobotModel::tiago_dual();
     let mut sup = Supervisor::new(SafetyConfig::default(), model).expect("default config");
+    let distance = match scene {
+        Scene::PersonInView => 1.5,
+        Scene::HandshakePartner => {
+            sup.on_intent(&echo_msgs::InteractionIntent {
+                header: Header::new("tiago", "bench", ""),
+                text: "A handshake.".into(),
+                interaction: echo_msgs::Interaction::Handshake,
+                mode: ControlMode::Forecast,
+            });
+            0.7
+        }
+    };
     let joints = sup.filter().joints().to_vec();
     let home = echo_robot::home_pose();
     let q0: Vec<f64> = joints
@@ -115,7 +136,7 @@ pub fn moving_scene() -> (Supervisor, impl FnMut(&mut Supervisor, Instant)) {
                     })
                     .collect(),
             };
-            let body = person(1.5);
+            let body = person(distance);
             let _ = s.on_forecast(
                 &Forecast {
                     header: Header::new("tiago", "forecaster", frames::BASE_FOOTPRINT),

@@ -221,21 +221,33 @@ fn bridge(samples: usize) -> Result<()> {
 }
 
 fn safety(samples: usize) {
-    let (mut sup, mut feed) = echo_safety::bench_support::moving_scene();
-    let mut now = Instant::now();
-    let mut times = Vec::with_capacity(samples);
-    for i in 0..samples + 50 {
-        now += Duration::from_millis(20);
-        feed(&mut sup, now);
-        let t = Instant::now();
-        let tick = sup.tick(now);
-        let dt = t.elapsed().as_secs_f64() * 1e3;
-        std::hint::black_box(tick);
-        if i >= 50 {
-            times.push(dt);
+    use echo_safety::bench_support::{moving_scene, Scene};
+    for (scene, label) in [
+        (
+            Scene::PersonInView,
+            "safety cycle, 17 joints, person in view",
+        ),
+        (
+            Scene::HandshakePartner,
+            "safety cycle, 17 joints, handshake partner (contact mode)",
+        ),
+    ] {
+        let (mut sup, mut feed) = moving_scene(scene);
+        let mut now = Instant::now();
+        let mut times = Vec::with_capacity(samples);
+        for i in 0..samples + 50 {
+            now += Duration::from_millis(20);
+            feed(&mut sup, now);
+            let t = Instant::now();
+            let tick = sup.tick(now);
+            let dt = t.elapsed().as_secs_f64() * 1e3;
+            std::hint::black_box(tick);
+            if i >= 50 {
+                times.push(dt);
+            }
         }
+        report(label, times);
     }
-    report("safety cycle, 17 joints, person in view", times);
 }
 
 async fn bus(samples: usize) -> Result<()> {
