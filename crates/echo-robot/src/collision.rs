@@ -55,11 +55,6 @@ impl Part {
             _ => None,
         }
     }
-
-    /// End-effector parts (allowed to approach a person in contact interactions).
-    pub fn is_end_effector(self) -> bool {
-        matches!(self, Part::Wrist(_) | Part::Gripper(_))
-    }
 }
 
 pub use echo_geometry::{segment_distance, Capsule};

@@ -44,7 +44,7 @@ pub struct Person {
 }
 
 /// Whether the robot may touch `part` of the partner during `interaction`.
-pub fn contact_allowed(interaction: Option<Interaction>, part: HumanPart) -> bool {
+fn contact_allowed(interaction: Option<Interaction>, part: HumanPart) -> bool {
     match interaction {
         Some(i) if i.is_contact() => match part {
             HumanPart::Hand(_) | HumanPart::Forearm(_) => true,

@@ -148,9 +148,6 @@ pub fn clip_actors(clip: &Clip, distance_m: f64) -> Vec<Actor> {
         .collect()
 }
 
-/// How far behind person B's pelvis the robot stands when it plays B, m.
-pub const ROBOT_SETBACK_M: f64 = 0.0;
-
 /// The frame where the two people of a clip are closest (pelvis to pelvis).
 pub fn closest_frame(clip: &Clip) -> usize {
     (0..clip.frames.len())
@@ -162,15 +159,15 @@ pub fn closest_frame(clip: &Clip) -> usize {
 }
 
 /// Where the robot stands in a generated interaction's world when it plays person B: on B's
-/// pelvis (on the floor) when the two were closest, facing along B's heading, `ROBOT_SETBACK_M`
-/// behind it. The robot does not walk: it plays B at the moment of the interaction.
+/// pelvis (on the floor) when the two were closest, facing along B's heading — where the HRI
+/// data puts it. The robot does not walk: it plays B at the moment of the interaction.
 pub fn robot_base_in_clip(clip: &Clip) -> nalgebra::Isometry3<f64> {
     let b0 = clip.joints(closest_frame(clip), 1);
     let yaw = echo_motion::skeleton::heading(&b0).euler_angles().2;
     nalgebra::Isometry3::from_parts(
         nalgebra::Translation3::new(b0[0].x, b0[0].y, 0.0),
         nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw),
-    ) * nalgebra::Translation3::new(-ROBOT_SETBACK_M, 0.0, 0.0)
+    )
 }
 
 /// Person A of a generated interaction in the robot's frame, the robot standing where
