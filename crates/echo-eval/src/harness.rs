@@ -15,6 +15,10 @@ pub struct Scores {
     pub windows: usize,
     /// JPE at each horizon of [`HORIZONS_S`].
     pub jpe: Vec<f64>,
+    /// JPE at each horizon of person A (who starts a reaction-type interaction) and of person
+    /// B (who answers); empty for single-person windows.
+    #[serde(default)]
+    pub jpe_by_agent: Vec<Vec<f64>>,
     /// AJPE at each horizon.
     pub ajpe: Vec<f64>,
     /// FDE at each horizon.
@@ -31,6 +35,9 @@ pub struct Scores {
 struct Acc {
     n: usize,
     jpe: Vec<f64>,
+    /// Per agent: sums and windows counted (two-agent windows only).
+    by_agent: [Vec<f64>; 2],
+    n_pairs: usize,
     ajpe: Vec<f64>,
     fde: Vec<f64>,
     mpjpe: f64,
@@ -51,6 +58,20 @@ impl Acc {
             self.ajpe[i] += ajpe(&pred[k], &w.future[k]);
             self.fde[i] += fde(&pred[k], &w.future[k]);
         }
+        if pred.first().is_some_and(|p| p.len() == 2)
+            && w.future.first().is_some_and(|t| t.len() == 2)
+        {
+            for (a, sums) in self.by_agent.iter_mut().enumerate() {
+                if sums.is_empty() {
+                    *sums = vec![0.0; HORIZONS_S.len()];
+                }
+                for (i, h) in HORIZONS_S.iter().enumerate() {
+                    let k = horizon_frame(*h) - 1;
+                    sums[i] += jpe(&pred[k][a..=a], &w.future[k][a..=a]);
+                }
+            }
+            self.n_pairs += 1;
+        }
         self.mpjpe += mpjpe(pred, &w.future);
         for (p, t) in pred.iter().zip(&w.future) {
             if p.len() == 2 && t.len() == 2 {
@@ -68,6 +89,15 @@ impl Acc {
         Scores {
             windows: self.n,
             jpe: self.jpe.iter().map(|x| x / n).collect(),
+            jpe_by_agent: if self.n_pairs == 0 {
+                vec![]
+            } else {
+                let m = self.n_pairs as f64;
+                self.by_agent
+                    .iter()
+                    .map(|v| v.iter().map(|x| x / m).collect())
+                    .collect()
+            },
             ajpe: self.ajpe.iter().map(|x| x / n).collect(),
             fde: self.fde.iter().map(|x| x / n).collect(),
             mpjpe: self.mpjpe / n,
@@ -167,6 +197,36 @@ pub fn markdown_per_kind(reports: &[Report], kinds: &[&str]) -> String {
     out
 }
 
+/// Per-type table of the answering person B alone for `kinds` (JPE): in the reaction types B
+/// answers A, so B's future is where the partner's motion matters.
+pub fn markdown_responder(reports: &[Report], kinds: &[&str]) -> String {
+    let mut out = String::from("| type | method | B: JPE 0.2 | JPE 0.5 | JPE 1.0 | JPE 1.5 | A: JPE 1.0 | JPE 1.5 |\n|---|---|---|---|---|---|---|---|\n");
+    for k in kinds {
+        for r in reports {
+            if let Some([a, b]) = r
+                .per_kind
+                .get(*k)
+                .map(|s| s.jpe_by_agent.as_slice())
+                .and_then(|v| <&[Vec<f64>; 2]>::try_from(v).ok())
+            {
+                let f = |v: &[f64]| {
+                    v.iter()
+                        .map(|x| format!("{x:.1}"))
+                        .collect::<Vec<_>>()
+                        .join(" | ")
+                };
+                out.push_str(&format!(
+                    "| {k} | {} | {} | {} |\n",
+                    r.predictor,
+                    f(b),
+                    f(&a[2..])
+                ));
+            }
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -221,5 +281,37 @@ mod tests {
         assert!(cv.per_kind["walk_past"].fde[0] < zv.per_kind["walk_past"].fde[0]);
         let table = markdown_table(&[zv, cv]);
         assert!(table.contains("| zero-velocity |") && table.lines().count() == 4);
+    }
+
+    #[test]
+    fn errors_are_split_by_person() {
+        // Exact for person A, holds person B's last pose: only B's column has an error.
+        struct OracleForA;
+        impl Predictor for OracleForA {
+            fn name(&self) -> String {
+                "oracle for A".into()
+            }
+            fn predict(&mut self, batch: &[&Window]) -> Vec<Vec<crate::metrics::Frame>> {
+                let mut zv = ZeroVelocity.predict(batch);
+                for (p, w) in zv.iter_mut().zip(batch) {
+                    for (f, t) in p.iter_mut().zip(&w.future) {
+                        f[0] = t[0];
+                    }
+                }
+                zv
+            }
+        }
+        let w = some_windows();
+        let r = evaluate(&mut OracleForA, &w, 16);
+        let wave = &r.per_kind["wave"];
+        let [a, b] = [&wave.jpe_by_agent[0], &wave.jpe_by_agent[1]];
+        assert!(a.iter().all(|x| *x == 0.0), "{a:?}");
+        assert!(b[3] > 0.0);
+        // The two people have equally many joints: the mean of both is the overall JPE.
+        for i in 0..HORIZONS_S.len() {
+            assert!((0.5 * (a[i] + b[i]) - wave.jpe[i]).abs() < 1e-9);
+        }
+        let t = markdown_responder(&[r], &["wave", "bow"]);
+        assert_eq!(t.lines().count(), 3, "{t}");
     }
 }

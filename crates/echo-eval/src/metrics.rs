@@ -14,7 +14,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 pub type Frame = Vec<[Vector3<f64>; 22]>;
 
 /// JPE (mm) of one frame.
-pub fn jpe(pred: &Frame, truth: &Frame) -> f64 {
+pub fn jpe(pred: &[[Vector3<f64>; 22]], truth: &[[Vector3<f64>; 22]]) -> f64 {
     let mut s = 0.0;
     let mut n = 0;
     for (p, t) in pred.iter().zip(truth) {

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::{anyhow, Result};
-use echo_eval::harness::{markdown_per_kind, markdown_table};
+use echo_eval::harness::{markdown_per_kind, markdown_responder, markdown_table};
 use echo_eval::window::{windows, ConstantVelocity, ZeroVelocity};
 use echo_eval::{evaluate, Predictor, Report};
 use echo_motion::synth::{generate_split, Split, KINDS};
@@ -308,6 +308,10 @@ pub fn run(args: Args) -> Result<()> {
             &reports,
             &["wave", "bow", "imitation", "handover", "handshake"]
         )
+    );
+    println!(
+        "{}",
+        markdown_responder(&reports, &["wave", "bow", "imitation", "handover"])
     );
     for r in &reports {
         println!("{}: {:.0} windows/s", r.predictor, r.windows_per_s);
