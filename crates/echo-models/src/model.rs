@@ -48,6 +48,11 @@ pub struct ForecasterConfig {
     /// Values per frame of agent A and agent B: 73 for a person (see [`crate::features`]);
     /// a robot agent has its own size (joint angles + base).
     pub agent_features: [usize; 2],
+    /// Initialisation only: the cross-attention blocks' output layers start at zero, so the
+    /// untrained social branch passes each agent's self intent through unchanged (the
+    /// single-agent model) and training learns the partner's influence as a correction
+    /// (false: random like every other layer — checkpoints from before this setting).
+    pub social_identity_init: bool,
 }
 
 impl Default for ForecasterConfig {
@@ -65,6 +70,7 @@ impl Default for ForecasterConfig {
             dct: false,
             interleaved: true,
             agent_features: [FEATURES, FEATURES],
+            social_identity_init: false,
         }
     }
 }
@@ -92,21 +98,22 @@ impl Mlp {
     /// An MLP whose output layer starts at zero: the decoders begin as the displacement
     /// baseline (repeat the last observed frame) and learn corrections from there.
     fn zero_out(i: usize, h: usize, o: usize, vb: VarBuilder) -> Result<Mlp> {
-        let w = vb
-            .pp("fc2")
-            .get_with_hints((o, h), "weight", candle_nn::init::ZERO)?;
-        let b = vb
-            .pp("fc2")
-            .get_with_hints(o, "bias", candle_nn::init::ZERO)?;
         Ok(Mlp {
             a: linear(i, h, vb.pp("fc1"))?,
-            b: Linear::new(w, Some(b)),
+            b: zero_linear(h, o, vb.pp("fc2"))?,
         })
     }
 
     fn forward(&self, x: &Tensor) -> Result<Tensor> {
         self.b.forward(&self.a.forward(x)?.gelu()?)
     }
+}
+
+/// A linear layer whose weight and bias start at zero (when training; loaded weights win).
+fn zero_linear(i: usize, o: usize, vb: VarBuilder) -> Result<Linear> {
+    let w = vb.get_with_hints((o, i), "weight", candle_nn::init::ZERO)?;
+    let b = vb.get_with_hints(o, "bias", candle_nn::init::ZERO)?;
+    Ok(Linear::new(w, Some(b)))
 }
 
 struct Attention {
@@ -118,12 +125,17 @@ struct Attention {
 }
 
 impl Attention {
-    fn new(d: usize, heads: usize, vb: VarBuilder) -> Result<Attention> {
+    /// `zero_out`: the output projection starts at zero (the attention adds nothing).
+    fn new(d: usize, heads: usize, zero_out: bool, vb: VarBuilder) -> Result<Attention> {
         Ok(Attention {
             q: linear(d, d, vb.pp("q"))?,
             k: linear(d, d, vb.pp("k"))?,
             v: linear(d, d, vb.pp("v"))?,
-            o: linear(d, d, vb.pp("o"))?,
+            o: if zero_out {
+                zero_linear(d, d, vb.pp("o"))?
+            } else {
+                linear(d, d, vb.pp("o"))?
+            },
             heads,
         })
     }
@@ -157,13 +169,18 @@ struct Block {
 }
 
 impl Block {
-    fn new(d: usize, heads: usize, vb: VarBuilder) -> Result<Block> {
+    /// `identity`: both residual branches start at zero, so the block starts as the identity.
+    fn new(d: usize, heads: usize, identity: bool, vb: VarBuilder) -> Result<Block> {
         Ok(Block {
             ln_q: layer_norm(d, 1e-5, vb.pp("ln_q"))?,
             ln_kv: layer_norm(d, 1e-5, vb.pp("ln_kv"))?,
-            att: Attention::new(d, heads, vb.pp("att"))?,
+            att: Attention::new(d, heads, identity, vb.pp("att"))?,
             ln_ff: layer_norm(d, 1e-5, vb.pp("ln_ff"))?,
-            ff: Mlp::new(d, 2 * d, d, vb.pp("ff"))?,
+            ff: if identity {
+                Mlp::zero_out(d, 2 * d, d, vb.pp("ff"))?
+            } else {
+                Mlp::new(d, 2 * d, d, vb.pp("ff"))?
+            },
         })
     }
 
@@ -265,16 +282,17 @@ impl Forecaster {
                 None
             },
             self_blocks: (0..cfg.self_layers)
-                .map(|i| Block::new(d, cfg.heads, vb.pp(format!("self.{i}"))))
+                .map(|i| Block::new(d, cfg.heads, false, vb.pp(format!("self.{i}"))))
                 .collect::<Result<_>>()?,
             temp: (0..cfg.temp_mlp)
                 .map(|i| TempMlp::new(t, d, vb.pp(format!("temp.{i}"))))
                 .collect::<Result<_>>()?,
             cross: (0..cfg.rounds)
                 .map(|i| {
+                    let id = cfg.social_identity_init;
                     Ok([
-                        Block::new(d, cfg.heads, vb.pp(format!("cross.{i}.a")))?,
-                        Block::new(d, cfg.heads, vb.pp(format!("cross.{i}.b")))?,
+                        Block::new(d, cfg.heads, id, vb.pp(format!("cross.{i}.a")))?,
+                        Block::new(d, cfg.heads, id, vb.pp(format!("cross.{i}.b")))?,
                     ])
                 })
                 .collect::<Result<_>>()?,
@@ -610,6 +628,41 @@ mod tests {
             Forecaster::new(base.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev)).unwrap();
         let bad = Tensor::zeros((1, 2, base.obs - 1, FEATURES), DType::F32, &dev).unwrap();
         assert!(m.forward(&bad, None).is_err());
+    }
+
+    #[test]
+    fn identity_social_init_starts_as_the_single_agent_model() {
+        let dev = Device::Cpu;
+        let obs = Tensor::randn(0f32, 1.0, (2, 2, 8, FEATURES), &dev).unwrap();
+        for identity in [true, false] {
+            let cfg = ForecasterConfig {
+                d_model: 16,
+                heads: 2,
+                social_identity_init: identity,
+                ..Default::default()
+            };
+            let vm = VarMap::new();
+            let m = Forecaster::new(cfg, VarBuilder::from_varmap(&vm, DType::F32, &dev)).unwrap();
+            // Untrained decoders output zero either way: give them weights so the features
+            // they decode show.
+            for (name, var) in vm.data().lock().unwrap().iter() {
+                if name.starts_with("decode_") && name.ends_with("fc2.weight") {
+                    let r = Tensor::randn(0f32, 1.0, var.dims(), &dev).unwrap();
+                    var.set(&r).unwrap();
+                }
+            }
+            let (soc, ind) = m.forward_both(&obs, None).unwrap();
+            let diff = (soc - ind)
+                .unwrap()
+                .abs()
+                .unwrap()
+                .max_all()
+                .unwrap()
+                .to_scalar::<f32>()
+                .unwrap();
+            // Identity: the social forecast is the individual one; random: the partner shows.
+            assert_eq!(diff < 1e-6, identity, "identity {identity}: {diff}");
+        }
     }
 
     #[test]

@@ -54,6 +54,15 @@ impl Variant {
     }
 }
 
+/// How the forecaster's cross-attention blocks are initialised.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum SocialInit {
+    /// Output layers at zero: each block starts as the identity.
+    Identity,
+    /// Random, like every other layer.
+    Random,
+}
+
 /// Options.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
@@ -105,6 +114,10 @@ pub struct Args {
     /// Seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Forecaster: how the cross-attention (social) blocks start — identity (the model starts
+    /// as the single-agent one and learns the partner's influence as a correction) or random.
+    #[arg(long, value_enum, default_value_t = SocialInit::Identity)]
+    pub social_init: SocialInit,
     /// Forecaster: device, cpu or cuda (needs echoctl built with `--features cuda`).
     #[arg(long, default_value = "cpu")]
     pub device: String,
@@ -376,6 +389,7 @@ pub fn run(args: Args) -> Result<()> {
         d_model: args.d_model,
         rounds: args.rounds,
         text_dim: echo_text::MINILM_DIM,
+        social_identity_init: args.social_init == SocialInit::Identity,
         ..Default::default()
     };
     let mut t = TrainConfig {
