@@ -41,6 +41,13 @@ pub struct Args {
     /// `e2e`: the forecaster's backend.
     #[arg(long, default_value = "candle")]
     pub backend: String,
+    /// `forecaster`: time an untrained model of this width instead (`--model`'s architecture
+    /// and prompt encoder otherwise; one head per 16 channels) — what a larger model costs.
+    #[arg(long)]
+    pub d_model: Option<usize>,
+    /// `forecaster` with `--d-model`: self-attention layers.
+    #[arg(long, default_value_t = 1)]
+    pub self_layers: usize,
 }
 
 /// Run the chosen benchmark and print a one-line summary per case.
@@ -52,7 +59,16 @@ pub async fn run(args: Args) -> Result<()> {
             safety(args.samples);
             Ok(())
         }
-        "forecaster" => forecaster(&args.model, args.samples),
+        "forecaster" => match args.d_model {
+            Some(d) => {
+                let stem = untrained(&args.model, d, args.self_layers)?;
+                let r = forecaster(&stem, args.samples);
+                let _ = std::fs::remove_file(stem.with_extension("safetensors"));
+                let _ = std::fs::remove_file(stem.with_extension("json"));
+                r
+            }
+            None => forecaster(&args.model, args.samples),
+        },
         "e2e" => e2e(&args).await,
         other => {
             anyhow::bail!("unknown benchmark '{other}' (bridge, bus, safety, forecaster, e2e)")
@@ -109,6 +125,41 @@ fn report(name: &str, mut v: Vec<f64>) {
         percentile_sorted(&v, 99.0),
         v[v.len() - 1]
     );
+}
+
+/// A randomly initialised checkpoint of `like`'s architecture at width `d` (16 channels per
+/// head) with `self_layers` self-attention layers, in the temporary folder: its stem.
+fn untrained(like: &std::path::Path, d: usize, self_layers: usize) -> Result<std::path::PathBuf> {
+    use candle_nn::{VarBuilder, VarMap};
+    use echo_models::model::Forecaster;
+    use echo_models::{Checkpoint, CheckpointMeta};
+    anyhow::ensure!(
+        d >= 16 && d.is_multiple_of(16),
+        "--d-model must be a multiple of 16"
+    );
+    let json = like.with_extension("json");
+    let mut meta: CheckpointMeta = serde_json::from_slice(
+        &std::fs::read(&json).map_err(|e| anyhow::anyhow!("{}: {e}", json.display()))?,
+    )
+    .map_err(|e| anyhow::anyhow!("{}: {e}", json.display()))?;
+    meta.model.d_model = d;
+    meta.model.heads = d / 16;
+    meta.model.self_layers = self_layers;
+    meta.command = format!("untrained, d_model {d}, {self_layers} self-attention layers");
+    let vm = VarMap::new();
+    Forecaster::new(
+        meta.model.clone(),
+        VarBuilder::from_varmap(&vm, candle_core::DType::F32, &candle_core::Device::Cpu),
+    )?;
+    let stem = std::env::temp_dir().join(format!("echo-bench-d{d}-{}", std::process::id()));
+    Checkpoint::save(&vm, &meta, &stem)?;
+    println!(
+        "untrained forecaster: d_model {d}, {} heads, {self_layers} self-attention layers, {} rounds, {} parameters",
+        d / 16,
+        meta.model.rounds,
+        vm.all_vars().iter().map(|v| v.elem_count()).sum::<usize>()
+    );
+    Ok(stem)
 }
 
 fn forecaster(stem: &std::path::Path, samples: usize) -> Result<()> {

@@ -48,6 +48,8 @@ impl Variant {
             Variant::NoIndLoss => t.w_self = 0.0,
             Variant::SingleAgent => {
                 m.rounds = 0;
+                // No cross-attention blocks to initialise.
+                m.social_identity_init = false;
                 t.w_interaction = 0.0;
             }
         }
