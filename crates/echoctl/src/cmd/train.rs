@@ -120,6 +120,9 @@ pub struct Args {
     /// as the single-agent one and learns the partner's influence as a correction) or random.
     #[arg(long, value_enum, default_value_t = SocialInit::Identity)]
     pub social_init: SocialInit,
+    /// Forecaster: weight of the interaction (distance-matrix) loss.
+    #[arg(long, default_value_t = 0.1)]
+    pub w_interaction: f64,
     /// Forecaster: device, cpu or cuda (needs echoctl built with `--features cuda`).
     #[arg(long, default_value = "cpu")]
     pub device: String,
@@ -399,6 +402,7 @@ pub fn run(args: Args) -> Result<()> {
         max_minutes: args.max_minutes,
         epochs: args.epochs,
         seed: args.seed,
+        w_interaction: args.w_interaction,
         ..Default::default()
     };
     args.variant.apply(&mut model, &mut t);
