@@ -29,3 +29,47 @@ fn shipped_checkpoint_beats_the_baselines_on_the_test_split() {
         assert!(m < z && m < c, "at {h} s the forecaster ({m:.1} mm) must beat zero ({z:.1}) and constant velocity ({c:.1})");
     }
 }
+
+/// The shipped single-agent variant (models/forecaster-single-agent: the same clips, epochs and
+/// schedule, no cross-attention) loses to the full model where the partner's motion decides
+/// one's own: wave back, bow back and handover, on test clips neither saw.
+#[test]
+fn shipped_checkpoint_beats_the_single_agent_variant_on_reaction_types() {
+    let models = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models");
+    let dev = candle_core::Device::Cpu;
+    let full = Checkpoint::load(&models.join("forecaster"), &dev).expect("models/forecaster");
+    let single = Checkpoint::load(&models.join("forecaster-single-agent"), &dev)
+        .expect("models/forecaster-single-agent");
+    assert_eq!(
+        single.meta.model.rounds, 0,
+        "the single-agent variant has no cross-attention"
+    );
+    let kinds = ["wave", "bow", "handover"];
+    let clips = generate_split(Split::Test, 0..8 * KINDS.len() as u64, 2, &|| {});
+    let w: Vec<_> = clips
+        .iter()
+        .flat_map(|c| windows(c, 8))
+        .filter(|w| {
+            serde_json::to_value(w.kind)
+                .ok()
+                .and_then(|v| v.as_str().map(|s| kinds.contains(&s)))
+                .unwrap_or(false)
+        })
+        .collect();
+    let f = evaluate(&mut full.predictor("full"), &w, 64);
+    let s = evaluate(&mut single.predictor("single-agent"), &w, 64);
+    for (i, h) in HORIZONS_S.iter().enumerate().filter(|(_, h)| **h >= 0.5) {
+        let (a, b) = (f.overall.jpe[i], s.overall.jpe[i]);
+        eprintln!("{h} s, wave + bow + handover: full {a:.1} mm, single-agent {b:.1}");
+        assert!(
+            a < b,
+            "at {h} s the full model ({a:.1} mm) must beat the single-agent one ({b:.1})"
+        );
+        if *h <= 1.0 {
+            for k in kinds {
+                let (a, b) = (f.per_kind[k].jpe[i], s.per_kind[k].jpe[i]);
+                assert!(a < b, "{k} at {h} s: full {a:.1} mm, single-agent {b:.1}");
+            }
+        }
+    }
+}
