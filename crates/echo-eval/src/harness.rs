@@ -148,18 +148,20 @@ pub fn evaluate(predictor: &mut dyn Predictor, windows: &[Window], batch: usize)
     }
 }
 
+/// Millimetres to one decimal, as table cells.
+fn cells(v: &[f64]) -> String {
+    v.iter()
+        .map(|x| format!("{x:.1}"))
+        .collect::<Vec<_>>()
+        .join(" | ")
+}
+
 fn row(name: &str, s: &Scores) -> String {
-    let f = |v: &[f64]| {
-        v.iter()
-            .map(|x| format!("{x:.1}"))
-            .collect::<Vec<_>>()
-            .join(" | ")
-    };
     format!(
         "| {name} | {} | {} | {} |",
-        f(&s.jpe),
-        f(&s.ajpe),
-        f(&s.fde)
+        cells(&s.jpe),
+        cells(&s.ajpe),
+        cells(&s.fde)
     )
 }
 
@@ -181,12 +183,7 @@ pub fn markdown_per_kind(reports: &[Report], kinds: &[&str]) -> String {
     for k in kinds {
         for r in reports {
             if let Some(s) = r.per_kind.get(*k) {
-                let v = s
-                    .jpe
-                    .iter()
-                    .map(|x| format!("{x:.1}"))
-                    .collect::<Vec<_>>()
-                    .join(" | ");
+                let v = cells(&s.jpe);
                 out.push_str(&format!(
                     "| {k} | {} | {v} | {} |\n",
                     r.predictor, s.windows
@@ -203,23 +200,12 @@ pub fn markdown_responder(reports: &[Report], kinds: &[&str]) -> String {
     let mut out = String::from("| type | method | B: JPE 0.2 | JPE 0.5 | JPE 1.0 | JPE 1.5 | A: JPE 1.0 | JPE 1.5 |\n|---|---|---|---|---|---|---|---|\n");
     for k in kinds {
         for r in reports {
-            if let Some([a, b]) = r
-                .per_kind
-                .get(*k)
-                .map(|s| s.jpe_by_agent.as_slice())
-                .and_then(|v| <&[Vec<f64>; 2]>::try_from(v).ok())
-            {
-                let f = |v: &[f64]| {
-                    v.iter()
-                        .map(|x| format!("{x:.1}"))
-                        .collect::<Vec<_>>()
-                        .join(" | ")
-                };
+            if let Some([a, b]) = r.per_kind.get(*k).map(|s| s.jpe_by_agent.as_slice()) {
                 out.push_str(&format!(
                     "| {k} | {} | {} | {} |\n",
                     r.predictor,
-                    f(b),
-                    f(&a[2..])
+                    cells(b),
+                    cells(&a[2..])
                 ));
             }
         }
