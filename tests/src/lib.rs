@@ -215,9 +215,18 @@ fn terminate(child: &mut Child, grace: Duration) -> bool {
 }
 
 impl Drop for Harness {
+    /// Stops every process; removes the log directory unless the test is panicking (a failed
+    /// assertion) or `ECHO_KEEP_TEST_LOGS=1` is set, so passing runs leave nothing behind.
     fn drop(&mut self) {
         for (_, mut c) in self.children.drain(..).rev() {
             terminate(&mut c, Duration::from_secs(3));
+        }
+        let keep = std::thread::panicking()
+            || std::env::var("ECHO_KEEP_TEST_LOGS").is_ok_and(|v| v == "1");
+        if keep {
+            eprintln!("service logs kept in {}", self.log_dir.display());
+        } else {
+            let _ = std::fs::remove_dir_all(&self.log_dir);
         }
     }
 }
