@@ -64,8 +64,8 @@ for k, v in sorted(counts.items()):
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn record_then_replay_through_mcap() -> anyhow::Result<()> {
     let mut h = Harness::new("sys-record", 4)?;
-    let dir = std::env::temp_dir().join(format!("echo-record-{}", std::process::id()));
-    std::fs::create_dir_all(&dir)?;
+    let scratch = tempfile::tempdir()?;
+    let dir = scratch.path().to_path_buf();
     let file = dir.join("session.mcap");
     let bus = h.bus("system-test").await?;
     let robot = bus.robot().clone();
@@ -167,6 +167,5 @@ async fn record_then_replay_through_mcap() -> anyhow::Result<()> {
     let first: echo_msgs::KeypointFrame = serde_json::from_slice(&raw[0].payload)?;
     assert_eq!(got[0].msg.header.seq, first.header.seq);
     assert!(got[0].msg.header.stamp_ns > raw.last().unwrap().log_time_ns);
-    let _ = std::fs::remove_dir_all(&dir);
     Ok(())
 }

@@ -92,7 +92,8 @@ async fn only_certified_identities_connect_and_only_safety_commands() -> anyhow:
         eprintln!("skipping: openssl is not installed");
         return Ok(());
     }
-    let tmp = std::env::temp_dir().join(format!("echo-sec-{}", std::process::id()));
+    let scratch = tempfile::tempdir()?;
+    let tmp = scratch.path().to_path_buf();
     let (good, rogue) = (tmp.join("good"), tmp.join("rogue"));
     make_certs(
         &good,
@@ -199,6 +200,5 @@ async fn only_certified_identities_connect_and_only_safety_commands() -> anyhow:
         "router log:\n{log}"
     );
     assert!(h.is_running("router"));
-    let _ = std::fs::remove_dir_all(&tmp);
     Ok(())
 }

@@ -8,7 +8,8 @@ use std::process::Command;
 #[test]
 fn short_soak_keeps_memory_and_deadlines() -> anyhow::Result<()> {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let json = std::env::temp_dir().join(format!("echo-soak-{}.json", std::process::id()));
+    let scratch = tempfile::tempdir()?;
+    let json = scratch.path().join("soak.json");
     let out = Command::new(echo_system_tests::binary("echoctl")?)
         .current_dir(&root)
         .args([
@@ -36,6 +37,5 @@ fn short_soak_keeps_memory_and_deadlines() -> anyhow::Result<()> {
     assert!(v["frames_sent"].as_u64().unwrap() > 800);
     assert!(v["forecasts"].as_u64().unwrap() > 600);
     assert_eq!(v["rss_mib"].as_object().unwrap().len(), 7);
-    let _ = std::fs::remove_file(&json);
     Ok(())
 }

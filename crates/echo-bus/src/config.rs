@@ -240,8 +240,8 @@ mod tests {
 
     #[test]
     fn tls_needs_its_files_and_forbids_plain_tcp() {
-        let dir = std::env::temp_dir().join(format!("echo-tls-cfg-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let scratch = tempfile::tempdir().unwrap();
+        let dir = scratch.path().to_path_buf();
         let mut a = BusArgs::loopback("r1", &[], &[]).for_service("safety");
         a.tls_dir = Some(dir.clone());
         let e = a.zenoh_config().unwrap_err().to_string();
@@ -261,7 +261,6 @@ mod tests {
         assert!(a.to_cli().contains(&"--tls-name".to_string()));
         assert_eq!(default_identity("mock-robot"), "robot-interface");
         assert_eq!(default_identity("echoctl-list"), "operator");
-        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

@@ -442,7 +442,8 @@ mod chart_tests {
 
     #[test]
     fn chart_draws_each_curve_in_its_colour() {
-        let p = std::env::temp_dir().join(format!("echo-chart-{}.png", std::process::id()));
+        let scratch = tempfile::tempdir().unwrap();
+        let p = scratch.path().join("chart.png");
         let up = Curve {
             points: (0..10).map(|i| (i as f64, i as f64)).collect(),
             rgb: [200, 0, 0],
@@ -465,6 +466,5 @@ mod chart_tests {
         assert_eq!(img.dimensions(), (720, 240));
         let count = |c: [u8; 3]| img.pixels().filter(|px| px.0 == c).count();
         assert!(count([200, 0, 0]) > 200 && count([0, 0, 200]) > 200);
-        let _ = std::fs::remove_file(p);
     }
 }

@@ -148,8 +148,8 @@ mod tests {
         let run = |steps: usize, split: Option<usize>| -> Vec<f32> {
             let x = Var::zeros(3, DType::F32, &dev).unwrap();
             let mut opt = AdamW::new(vec![("x".into(), x.clone())], 0.05, 0.0).unwrap();
-            let dir = std::env::temp_dir().join(format!("echo-adamw-{}", std::process::id()));
-            std::fs::create_dir_all(&dir).unwrap();
+            let scratch = tempfile::tempdir().unwrap();
+            let dir = scratch.path().to_path_buf();
             for k in 0..steps {
                 if Some(k) == split {
                     // Save, rebuild from scratch, load: the run must continue unchanged.

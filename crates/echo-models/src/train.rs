@@ -521,7 +521,8 @@ mod tests {
     #[test]
     fn training_resumes_from_its_saved_state() {
         let (cfg, mut t) = tiny();
-        let dir = std::env::temp_dir().join(format!("echo-train-{}", std::process::id()));
+        let scratch = tempfile::tempdir().unwrap();
+        let dir = scratch.path().to_path_buf();
         let run = |resume: bool, stem: &Path| Run {
             dev: Device::Cpu,
             text: None,
@@ -562,7 +563,6 @@ mod tests {
         // A different model cannot resume this state.
         let other = ForecasterConfig { d_model: 32, ..cfg };
         assert!(train(&other, &t, &run(true, &a), &mut Quiet).is_err());
-        let _ = std::fs::remove_dir_all(dir);
     }
 
     #[test]

@@ -244,16 +244,17 @@ mod tests {
     use super::*;
     use crate::synth::generate;
 
-    fn tmp(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("echo-ds-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        d
+    /// A fresh directory, removed when the returned guard drops.
+    fn tmp(name: &str) -> (tempfile::TempDir, PathBuf) {
+        let guard = tempfile::tempdir().unwrap();
+        let d = guard.path().join(name);
+        (guard, d)
     }
 
     #[test]
     fn round_trip() {
         let clips: Vec<Clip> = (0..3).map(|i| generate(&Split::Test.clip(i))).collect();
-        let d = tmp("rt");
+        let (_tmp, d) = tmp("rt");
         write(&d, &clips).unwrap();
         let ds = read(&d).unwrap();
         assert_eq!(ds.meta.clips.len(), 3);
@@ -264,7 +265,7 @@ mod tests {
 
     #[test]
     fn bad_files_name_the_file_and_the_problem() {
-        let d = tmp("bad");
+        let (_tmp, d) = tmp("bad");
         write(&d, &[generate(&Split::Test.clip(0))]).unwrap();
         std::fs::write(d.join("meta.json"), b"{\"version\": 1, \"fps\": 30, \"clips\": [{\"id\": \"x\", \"kind\": \"wave\", \"seed\": 1, \"split\": null, \"heights\": [1.7, 1.7], \"texts\": [], \"offset\": 0, \"frames\": 99999}]}").unwrap();
         let e = read(&d).unwrap_err().to_string();
@@ -272,7 +273,7 @@ mod tests {
         std::fs::write(d.join("motions.safetensors"), b"not a safetensors file").unwrap();
         let e = read(&d).unwrap_err().to_string();
         assert!(e.contains("motions.safetensors"), "{e}");
-        let e = read(&tmp("missing")).unwrap_err().to_string();
+        let e = read(&tmp("missing").1).unwrap_err().to_string();
         assert!(e.contains("meta.json"), "{e}");
     }
 }

@@ -235,8 +235,8 @@ mod tests {
 
     #[test]
     fn export_then_load_in_the_intergen_layout() {
-        let root = std::env::temp_dir().join(format!("echo-intergen-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&root);
+        let scratch = tempfile::tempdir().unwrap();
+        let root = scratch.path().to_path_buf();
         let clips: Vec<Clip> = (0..4).map(|i| generate(&Split::Test.clip(i))).collect();
         export(
             &root,
@@ -275,8 +275,8 @@ mod tests {
 
     #[test]
     fn bad_files_name_the_file_and_the_problem() {
-        let root = std::env::temp_dir().join(format!("echo-intergen-bad-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&root);
+        let scratch = tempfile::tempdir().unwrap();
+        let root = scratch.path().to_path_buf();
         std::fs::create_dir_all(root.join("motions_processed/person1")).unwrap();
         std::fs::create_dir_all(root.join("split")).unwrap();
         std::fs::write(root.join("split/test.txt"), "7\n").unwrap();

@@ -72,8 +72,8 @@ fn every_variant_matches_candle() {
             ..base.clone()
         },
     ];
-    let dir = std::env::temp_dir().join(format!("echo-onnx-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let scratch = tempfile::tempdir().unwrap();
+    let dir = scratch.path().to_path_buf();
     for (i, cfg) in variants.iter().enumerate() {
         let vm = VarMap::new();
         let model =
@@ -119,7 +119,6 @@ fn every_variant_matches_candle() {
             );
         }
     }
-    let _ = std::fs::remove_dir_all(dir);
 }
 
 #[test]
@@ -128,7 +127,8 @@ fn shipped_checkpoint_exports_and_matches() {
         return;
     }
     let stem = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/forecaster");
-    let out = std::env::temp_dir().join(format!("echo-shipped-{}.onnx", std::process::id()));
+    let scratch = tempfile::tempdir().unwrap();
+    let out = scratch.path().join("shipped.onnx");
     echo_onnx::export_checkpoint(&stem, &out).unwrap();
     let ck = Checkpoint::load(&stem, &Device::Cpu).unwrap();
     let cfg = ck.meta.model.clone();
@@ -148,7 +148,6 @@ fn shipped_checkpoint_exports_and_matches() {
         &ort.predict(b, &obs, &text).unwrap(),
     );
     assert!(d < 1e-4, "shipped model: max difference {d}");
-    let _ = std::fs::remove_file(out);
 }
 
 #[test]
@@ -173,9 +172,9 @@ fn wrong_sizes_are_errors() {
         .iter()
         .map(|(k, v)| (k.clone(), v.as_tensor().clone()))
         .collect();
-    let path = std::env::temp_dir().join(format!("echo-sizes-{}.onnx", std::process::id()));
+    let scratch = tempfile::tempdir().unwrap();
+    let path = scratch.path().join("sizes.onnx");
     std::fs::write(&path, build(weights, &cfg).unwrap().encode_to_vec()).unwrap();
     let mut ort = OrtBackend::load(&path, cfg.clone(), 1).unwrap();
     assert!(ort.predict(2, &[0.0; 10], &[]).is_err());
-    let _ = std::fs::remove_file(path);
 }

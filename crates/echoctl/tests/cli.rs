@@ -52,8 +52,8 @@ fn bad_values_are_named() {
 
 #[test]
 fn data_and_eval_verbs_work_end_to_end() {
-    let dir = std::env::temp_dir().join(format!("echoctl-cli-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let scratch = tempfile::tempdir().unwrap();
+    let dir = scratch.path().to_path_buf();
     // gen → Echo's format, then stats read it back.
     let out = echoctl(&[
         "data",

@@ -98,6 +98,7 @@ async fn e2e(args: &Args) -> Result<()> {
             model: args.e2e_model.clone(),
             backend: args.backend.clone(),
             log_dir: std::env::temp_dir().join(format!("echo-e2e-{}-{n}", std::process::id())),
+            keep_logs: false,
             rss_every: None,
         })
         .await?;

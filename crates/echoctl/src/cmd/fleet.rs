@@ -39,6 +39,8 @@ pub struct FleetOptions {
     pub backend: String,
     /// Where the services' logs go.
     pub log_dir: PathBuf,
+    /// Keep the logs after a run that succeeded (a failed run always keeps them).
+    pub keep_logs: bool,
     /// Sample every child's resident memory this often (soak).
     pub rss_every: Option<Duration>,
 }
@@ -400,5 +402,9 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
         })
         .sum();
     bus.close().await?;
+    if !opts.keep_logs {
+        // Best effort: a directory that cannot be removed costs disk, not correctness.
+        let _ = std::fs::remove_dir_all(&opts.log_dir);
+    }
     Ok(report)
 }

@@ -32,6 +32,10 @@ pub struct Args {
     /// Write the full report as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Write the services' logs here and keep them (default: a temporary directory, removed
+    /// after a run that succeeded).
+    #[arg(long)]
+    pub log_dir: Option<PathBuf>,
 }
 
 /// Growth of a memory series: mean of the last third minus mean of the first third.
@@ -47,13 +51,19 @@ pub fn growth(series: &[(f64, f64)]) -> f64 {
 /// Run the soak and judge it.
 pub async fn run_soak(args: Args) -> Result<()> {
     let every = Duration::from_secs_f64((args.seconds / 30.0).clamp(0.5, 20.0));
+    let log_dir = args
+        .log_dir
+        .clone()
+        .unwrap_or_else(|| std::env::temp_dir().join(format!("echo-soak-{}", std::process::id())));
     let r: FleetReport = run(&FleetOptions {
         robots: args.robots.max(1),
         with_safety: args.robots.max(1),
         seconds: args.seconds,
         model: args.model.clone(),
         backend: args.backend.clone(),
-        log_dir: std::env::temp_dir().join(format!("echo-soak-{}", std::process::id())),
+        log_dir: log_dir.clone(),
+        // Judged below: the logs stay until the run has passed.
+        keep_logs: true,
         rss_every: Some(every),
     })
     .await?;
@@ -97,18 +107,27 @@ pub async fn run_soak(args: Args) -> Result<()> {
     }
     anyhow::ensure!(
         worst.1 <= args.max_rss_growth_mib,
-        "{} grew {:.1} MiB (bound {:.1})",
+        "{} grew {:.1} MiB (bound {:.1}; logs in {})",
         worst.0,
         worst.1,
-        args.max_rss_growth_mib
+        args.max_rss_growth_mib,
+        log_dir.display()
     );
     anyhow::ensure!(
         missed_rate <= args.max_missed_rate,
-        "missed-deadline rate {:.3} % above the bound {:.3} %",
+        "missed-deadline rate {:.3} % above the bound {:.3} % (logs in {})",
         missed_rate * 100.0,
-        args.max_missed_rate * 100.0
+        args.max_missed_rate * 100.0,
+        log_dir.display()
     );
-    anyhow::ensure!(r.forecasts > 0, "no forecasts at all");
+    anyhow::ensure!(
+        r.forecasts > 0,
+        "no forecasts at all (logs in {})",
+        log_dir.display()
+    );
+    if args.log_dir.is_none() {
+        let _ = std::fs::remove_dir_all(&log_dir);
+    }
     println!("soak passed");
     Ok(())
 }
