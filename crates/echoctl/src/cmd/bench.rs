@@ -91,17 +91,19 @@ async fn e2e(args: &Args) -> Result<()> {
     );
     println!("|---|---|---|---|---|---|---|---|---|");
     for &n in &args.robots {
+        let log_dir = std::env::temp_dir().join(format!("echo-e2e-{}-{n}", std::process::id()));
         let r = run(&FleetOptions {
             robots: n.max(1),
             with_safety: 1,
             seconds: args.seconds,
             model: args.e2e_model.clone(),
             backend: args.backend.clone(),
-            log_dir: std::env::temp_dir().join(format!("echo-e2e-{}-{n}", std::process::id())),
-            keep_logs: false,
+            log_dir: log_dir.clone(),
             rss_every: None,
         })
         .await?;
+        // A run that failed returned above and keeps its logs (its error names them).
+        let _ = std::fs::remove_dir_all(&log_dir);
         println!(
             "| {n} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.frames_sent,

@@ -37,10 +37,8 @@ pub struct FleetOptions {
     pub model: PathBuf,
     /// Forecaster backend (candle, onnx, zero-velocity).
     pub backend: String,
-    /// Where the services' logs go.
+    /// Where the services' logs go (the caller removes them once it has judged the run).
     pub log_dir: PathBuf,
-    /// Keep the logs after a run that succeeded (a failed run always keeps them).
-    pub keep_logs: bool,
     /// Sample every child's resident memory this often (soak).
     pub rss_every: Option<Duration>,
 }
@@ -402,9 +400,5 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
         })
         .sum();
     bus.close().await?;
-    if !opts.keep_logs {
-        // Best effort: a directory that cannot be removed costs disk, not correctness.
-        let _ = std::fs::remove_dir_all(&opts.log_dir);
-    }
     Ok(report)
 }

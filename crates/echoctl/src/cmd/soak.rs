@@ -62,8 +62,6 @@ pub async fn run_soak(args: Args) -> Result<()> {
         model: args.model.clone(),
         backend: args.backend.clone(),
         log_dir: log_dir.clone(),
-        // Judged below: the logs stay until the run has passed.
-        keep_logs: true,
         rss_every: Some(every),
     })
     .await?;
@@ -105,30 +103,32 @@ pub async fn run_soak(args: Args) -> Result<()> {
         v["seconds"] = args.seconds.into();
         std::fs::write(p, serde_json::to_vec(&v)?)?;
     }
-    anyhow::ensure!(
-        worst.1 <= args.max_rss_growth_mib,
-        "{} grew {:.1} MiB (bound {:.1}; logs in {})",
-        worst.0,
-        worst.1,
-        args.max_rss_growth_mib,
-        log_dir.display()
-    );
-    anyhow::ensure!(
-        missed_rate <= args.max_missed_rate,
-        "missed-deadline rate {:.3} % above the bound {:.3} % (logs in {})",
-        missed_rate * 100.0,
-        args.max_missed_rate * 100.0,
-        log_dir.display()
-    );
-    anyhow::ensure!(
-        r.forecasts > 0,
-        "no forecasts at all (logs in {})",
-        log_dir.display()
-    );
+    if let Err(e) = judge(&args, &r, missed_rate, &worst) {
+        anyhow::bail!("{e} (logs in {})", log_dir.display());
+    }
     if args.log_dir.is_none() {
         let _ = std::fs::remove_dir_all(&log_dir);
     }
     println!("soak passed");
+    Ok(())
+}
+
+/// The soak's bounds: memory growth of the worst process, missed deadlines, any forecast at all.
+fn judge(args: &Args, r: &FleetReport, missed_rate: f64, worst: &(String, f64)) -> Result<()> {
+    anyhow::ensure!(
+        worst.1 <= args.max_rss_growth_mib,
+        "{} grew {:.1} MiB (bound {:.1})",
+        worst.0,
+        worst.1,
+        args.max_rss_growth_mib
+    );
+    anyhow::ensure!(
+        missed_rate <= args.max_missed_rate,
+        "missed-deadline rate {:.3} % above the bound {:.3} %",
+        missed_rate * 100.0,
+        args.max_missed_rate * 100.0
+    );
+    anyhow::ensure!(r.forecasts > 0, "no forecasts at all");
     Ok(())
 }
 
