@@ -102,7 +102,7 @@ pub fn moving_scene(scene: Scene) -> (Supervisor, impl FnMut(&mut Supervisor, In
         velocity: vec![],
         base: None,
     };
-    sup.on_joint_state(&js(&joints, &q0), Instant::now());
+    let _ = sup.on_joint_state(&js(&joints, &q0), Instant::now());
     let i = joints
         .iter()
         .position(|j| j == "arm_right_1_joint")
@@ -110,7 +110,7 @@ pub fn moving_scene(scene: Scene) -> (Supervisor, impl FnMut(&mut Supervisor, In
     let mut cycle = 0u64;
     let feed = move |s: &mut Supervisor, now: Instant| {
         let q: Vec<f64> = s.filter().state().iter().map(|x| x.q).collect();
-        s.on_joint_state(&js(&joints, &q), now);
+        let _ = s.on_joint_state(&js(&joints, &q), now);
         if cycle.is_multiple_of(3) {
             let t = cycle as f64 * 0.02;
             let mut h = Header::new("tiago", "forecaster", "odom");

@@ -111,8 +111,24 @@ pub struct SafetyConfig {
     pub state_deadline_ms: f64,
     /// A plan whose first point is further than this from the measured state is rejected, rad (m for the torso).
     pub start_tolerance: f64,
-    /// Commanded and measured positions further apart than this → stop and resynchronise, rad.
+    /// Commanded and measured positions further apart than this → stop and hold until they
+    /// agree again (or an operator's e-stop reset re-anchors at rest), rad (m for the torso).
     pub tracking_tolerance: f64,
+    /// Measured positions may exceed the URDF hard limits by this much (encoder noise at a
+    /// mechanical stop); beyond it a sample is a sensor fault. Also the slack of the jump rule.
+    /// In the joint's units (rad, m).
+    pub measured_tolerance: f64,
+    /// Receipt jitter allowed by the jump rule on top of the time between samples, s.
+    pub state_jitter_s: f64,
+    /// The only sender (`header.source`) whose joint states are accepted; `None`: the first one
+    /// heard (ROS 2 joint states arrive as source `ros2`).
+    pub state_source: Option<String>,
+    /// The accepted joint-state source is released after this long without a sample, ms.
+    pub state_source_timeout_ms: f64,
+    /// A sensor fault clears after this long with only plausible samples, ms.
+    pub fault_clear_ms: f64,
+    /// Speed scale of a group while a joint of it is outside its soft range, moving inward.
+    pub recovery_speed_scale: f64,
     /// Self-collision: capsules may not come closer than this while approaching, m.
     pub self_collision_margin_m: f64,
     /// Liveliness tokens that must be present (lost → stop): e.g. the robot interface.
@@ -136,6 +152,12 @@ impl Default for SafetyConfig {
             state_deadline_ms: 100.0,
             start_tolerance: 0.35,
             tracking_tolerance: 0.25,
+            measured_tolerance: 0.01,
+            state_jitter_s: 0.05,
+            state_source: None,
+            state_source_timeout_ms: 1000.0,
+            fault_clear_ms: 500.0,
+            recovery_speed_scale: 0.2,
             self_collision_margin_m: 0.01,
             required_alive: vec![],
             separation: SeparationConfig::default(),
@@ -169,10 +191,18 @@ impl SafetyConfig {
             ("state_deadline_ms", self.state_deadline_ms),
             ("start_tolerance", self.start_tolerance),
             ("tracking_tolerance", self.tracking_tolerance),
+            ("measured_tolerance", self.measured_tolerance),
+            ("state_jitter_s", self.state_jitter_s),
+            ("state_source_timeout_ms", self.state_source_timeout_ms),
+            ("fault_clear_ms", self.fault_clear_ms),
+            ("recovery_speed_scale", self.recovery_speed_scale),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return Err(format!("{n} must be a positive number, not {v}"));
             }
+        }
+        if self.recovery_speed_scale > 1.0 {
+            return Err("recovery_speed_scale must be at most 1".into());
         }
         if self.point_every == 0 {
             return Err("point_every must be at least 1".into());

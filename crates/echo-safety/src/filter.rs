@@ -68,6 +68,8 @@ pub struct Filter {
     dt: f64,
     tau: f64,
     state: Vec<JointState1>,
+    hard: Vec<(f64, f64)>,
+    recovery_scale: f64,
 }
 
 impl Filter {
@@ -87,6 +89,7 @@ impl Filter {
             .map(|l| JointState1::rest(0.0f64.clamp(l.lower, l.upper)))
             .collect();
         debug_assert_eq!(n, limits.len());
+        let hard = limits.iter().map(|l| (l.lower, l.upper)).collect();
         Filter {
             joints,
             limits,
@@ -96,7 +99,28 @@ impl Filter {
             dt,
             tau,
             state,
+            hard,
+            recovery_scale: 1.0,
         }
+    }
+
+    /// The hard position limits (the operating limits are inside them) and the speed scale of
+    /// a group while one of its joints is outside its operating range, recovering inward.
+    /// Without this call the operating limits are the hard limits.
+    pub fn with_hard_limits(mut self, hard: Vec<(f64, f64)>, recovery_scale: f64) -> Filter {
+        debug_assert_eq!(hard.len(), self.limits.len());
+        self.hard = hard
+            .iter()
+            .zip(&self.limits)
+            .map(|(&(lo, hi), l)| (lo.min(l.lower), hi.max(l.upper)))
+            .collect();
+        self.recovery_scale = recovery_scale.clamp(0.0, 1.0);
+        self
+    }
+
+    /// Hard position limits per joint.
+    pub fn hard_limits(&self) -> &[(f64, f64)] {
+        &self.hard
     }
 
     /// Joint names.
@@ -124,14 +148,28 @@ impl Filter {
         self.dt
     }
 
-    /// Restart at rest at `q`. A position outside the limits widens that joint's allowed range
-    /// to include it; the range tightens back as the joint moves inside (it may only move in).
+    /// Restart at rest at `q`, clamped into the hard limits (a non-finite value keeps the
+    /// current position). A position between the operating and the hard limits widens that
+    /// joint's allowed range to include it; the range tightens back as the joint moves inside
+    /// (it may only move in, at the recovery speed scale). Never beyond the hard limits.
     pub fn reset_to(&mut self, q: &[f64]) {
         for (i, x) in q.iter().enumerate().take(self.state.len()) {
-            self.state[i] = JointState1::rest(*x);
-            self.lo[i] = self.limits[i].lower.min(*x);
-            self.hi[i] = self.limits[i].upper.max(*x);
+            let (hlo, hhi) = self.hard[i];
+            let x = if x.is_finite() {
+                x.clamp(hlo, hhi)
+            } else {
+                self.state[i].q
+            };
+            self.state[i] = JointState1::rest(x);
+            self.lo[i] = self.limits[i].lower.min(x);
+            self.hi[i] = self.limits[i].upper.max(x);
         }
+    }
+
+    /// Whether joint `i`'s commanded position is outside its operating range (recovering).
+    pub fn outside_operating_range(&self, i: usize) -> bool {
+        let q = self.state[i].q;
+        q < self.limits[i].lower || q > self.limits[i].upper
     }
 
     /// Every joint at rest.
@@ -159,7 +197,20 @@ impl Filter {
         let mut out = Vec::with_capacity(groups.len());
         for (g, group) in groups.iter().enumerate() {
             let forced = brake.get(g).copied().unwrap_or(true);
-            let s = scale.get(g).copied().unwrap_or(0.0).clamp(0.0, 1.0);
+            // A scale that is not a number brakes (NaN.clamp would stay NaN).
+            let mut s = scale
+                .get(g)
+                .copied()
+                .filter(|s| !s.is_nan())
+                .unwrap_or(0.0)
+                .clamp(0.0, 1.0);
+            if group
+                .joints
+                .iter()
+                .any(|&j| self.outside_operating_range(j))
+            {
+                s = s.min(self.recovery_scale);
+            }
             let result = if forced {
                 None
             } else {
@@ -207,14 +258,14 @@ impl Filter {
             .iter()
             .map(|&j| {
                 let st = self.state[j];
-                match r.q.get(j).copied().flatten() {
+                match r.q.get(j).copied().flatten().filter(|q| q.is_finite()) {
                     // A target beyond the limits becomes the limit.
                     Some(q_ref) => {
                         let q_ref = q_ref.clamp(self.lo[j], self.hi[j]);
                         let v_ff = if q_ref == self.lo[j] || q_ref == self.hi[j] {
                             0.0
                         } else {
-                            r.v.get(j).copied().unwrap_or(0.0)
+                            r.v.get(j).copied().filter(|v| v.is_finite()).unwrap_or(0.0)
                         };
                         v_ff + (q_ref - st.q) / self.tau
                     }
@@ -238,12 +289,12 @@ impl Filter {
                 r.q.get(j)
                     .copied()
                     .flatten()
+                    .filter(|t| t.is_finite())
                     .map_or(0.0, |t| (t.clamp(self.lo[j], self.hi[j]) - q).abs());
+            let v_ff = r.v.get(j).copied().filter(|v| v.is_finite()).unwrap_or(0.0);
             let cap = (s * l.velocity)
                 .min(envelope_speed(room.max(0.0), l, dt))
-                .min(
-                    envelope_speed(to_target, l, dt).max(r.v.get(j).copied().unwrap_or(0.0).abs()),
-                );
+                .min(envelope_speed(to_target, l, dt).max(v_ff.abs()));
             if vdes[k].abs() > cap {
                 fv = fv.min(cap / vdes[k].abs());
             }

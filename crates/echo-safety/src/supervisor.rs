@@ -1,10 +1,15 @@
 //! The safety supervisor: inputs in, one command and one status per control cycle out.
 //!
 //! Stop reasons (any one brakes every group to rest, then holds): latched e-stop; no joint
-//! state for `state_deadline_ms`; a required service's liveliness lost; no valid plan for
-//! `plan_deadline_ms` (receiver's monotonic clock); commanded and measured positions apart by
-//! more than `tracking_tolerance`; hold mode. Recovery: as soon as the reasons clear, tracking
-//! resumes from the filter's current state — never from a jump.
+//! state for `state_deadline_ms`; a sensor fault (a measured sample out of the hard limits,
+//! non-finite, or jumping faster than the joint can move: [`crate::measured`]) within the last
+//! `fault_clear_ms`; a required service's liveliness lost; no valid plan for `plan_deadline_ms`
+//! (receiver's monotonic clock); commanded and measured positions apart by more than
+//! `tracking_tolerance`; hold mode. Recovery: as soon as the reasons clear, tracking resumes
+//! from the filter's current state — never from a jump. The measured state never moves the
+//! command: the command starts at the first plausible measured state (clamped into the hard
+//! limits) and is continuous from then on; the one exception is an operator's e-stop reset at
+//! rest, which re-anchors the command at a plausible measured state (`resync`).
 
 use std::collections::{BTreeMap, HashSet};
 use std::time::Instant;
@@ -22,6 +27,7 @@ use echo_robot::{JointValues, RobotModel};
 use crate::config::SafetyConfig;
 use crate::filter::{Filter, Group, GroupStep, Reference};
 use crate::joint::JointState1;
+use crate::measured::{CheckedJoint, MonitorParams, StateFault, StateMonitor};
 use crate::plan::{accept, ActivePlan, PlanError};
 use crate::separation::{assess, human_capsules, Assessment, Person};
 
@@ -60,6 +66,9 @@ pub struct Supervisor {
     humans: Option<(Instant, Vec<Skeleton>)>,
     forecast: Option<(Instant, Vec<Vec<[f64; 3]>>)>,
     lost: HashSet<String>,
+    monitor: StateMonitor,
+    /// The latest sensor fault and when it was seen.
+    sensor_fault: Option<(String, Instant)>,
     twist: (f64, f64),
     counters: BTreeMap<String, u64>,
     q_full: JointValues,
@@ -97,12 +106,44 @@ impl Supervisor {
             .collect::<Result<Vec<_>, _>>()?;
         let body = RobotBody::tiago(&model).map_err(|e| e.to_string())?;
         let n = joints.len();
+        let hard: Vec<(f64, f64)> = joints
+            .iter()
+            .map(|j| {
+                model
+                    .limits(j)
+                    .map(|l| (l.lower, l.upper))
+                    .ok_or_else(|| format!("model lacks limits of {j}"))
+            })
+            .collect::<Result<_, _>>()?;
         let filter = Filter::new(
             joints,
             limits,
             groups,
             cfg.dt(),
             cfg.tracking_time_constant_s,
+        )
+        .with_hard_limits(hard, cfg.recovery_speed_scale);
+        // Every actuated joint of the model is checked (grippers too: they shape the capsules).
+        let checked = model
+            .actuated_joints()
+            .iter()
+            .filter_map(|j| {
+                model.limits(j).map(|l| CheckedJoint {
+                    name: j.clone(),
+                    lower: l.lower,
+                    upper: l.upper,
+                    velocity: l.velocity,
+                })
+            })
+            .collect();
+        let monitor = StateMonitor::new(
+            checked,
+            MonitorParams {
+                tolerance: cfg.measured_tolerance,
+                jitter_s: cfg.state_jitter_s,
+                source_timeout_s: cfg.state_source_timeout_ms / 1e3,
+            },
+            cfg.state_source.clone(),
         );
         Ok(Supervisor {
             q_full: model.zero(),
@@ -122,6 +163,8 @@ impl Supervisor {
             humans: None,
             forecast: None,
             lost: HashSet::new(),
+            monitor,
+            sensor_fault: None,
             twist: (0.0, 0.0),
             counters: BTreeMap::new(),
             filter_to_model,
@@ -143,8 +186,27 @@ impl Supervisor {
         *self.counters.entry(key.to_string()).or_default() += 1;
     }
 
-    /// A measured joint state (any order, any subset).
-    pub fn on_joint_state(&mut self, js: &JointState, now: Instant) {
+    /// A measured joint state (any order, any subset) received at `now`. A sample from another
+    /// source than the accepted one, or one that breaks a plausibility rule, is refused (counted
+    /// as `state/<reason>`) and changes nothing but the fault latch: it never reaches the filter.
+    pub fn on_joint_state(&mut self, js: &JointState, now: Instant) -> Result<(), StateFault> {
+        match self.monitor.check(js, now) {
+            Ok(switched) => {
+                if switched {
+                    self.count("state/source_changed");
+                }
+            }
+            Err(e) => {
+                self.count(&format!("state/{}", e.reason()));
+                if e.is_sensor_fault() {
+                    if self.sensor_fault.is_none() {
+                        self.count("state/fault");
+                    }
+                    self.sensor_fault = Some((e.to_string(), now));
+                }
+                return Err(e);
+            }
+        }
         for (i, name) in self.filter.joints().to_vec().iter().enumerate() {
             if let Some(q) = js.position_of(name) {
                 self.measured[i] = Some(q);
@@ -159,11 +221,23 @@ impl Supervisor {
             }
         }
         self.state_at = Some(now);
-        if !self.initialized && self.measured.iter().all(Option::is_some) {
+        if !self.initialized
+            && self.sensor_fault(now).is_none()
+            && self.measured.iter().all(Option::is_some)
+        {
             let q: Vec<f64> = self.measured.iter().map(|q| q.unwrap_or(0.0)).collect();
             self.filter.reset_to(&q);
             self.initialized = true;
         }
+        Ok(())
+    }
+
+    /// The current sensor fault, if one was seen within `fault_clear_ms` of `now`.
+    pub fn sensor_fault(&self, now: Instant) -> Option<&str> {
+        self.sensor_fault.as_ref().and_then(|(why, at)| {
+            (now.saturating_duration_since(*at).as_secs_f64() * 1e3 < self.cfg.fault_clear_ms)
+                .then_some(why.as_str())
+        })
     }
 
     /// A robot plan (from a forecast in forecast mode, from the retargeter in imitation mode).
@@ -262,7 +336,29 @@ impl Supervisor {
                     // A reset never resumes an old plan.
                     self.plan = None;
                 }
+                self.resync_at_rest();
             }
+        }
+    }
+
+    /// The operator's reset at rest re-anchors the command at the measured state when the two
+    /// disagree beyond the tracking tolerance (the robot was moved, or stopped elsewhere): the
+    /// only discontinuity of the command, and only from a plausible measured state (no sensor
+    /// fault latched; [`Filter::reset_to`] clamps into the hard limits).
+    fn resync_at_rest(&mut self) {
+        if !self.initialized || !self.filter.all_rest() || self.sensor_fault.is_some() {
+            return;
+        }
+        if !self.measured.iter().all(Option::is_some) {
+            return;
+        }
+        let q: Vec<f64> = self.measured.iter().map(|q| q.unwrap_or(0.0)).collect();
+        if q.iter()
+            .zip(self.filter.state())
+            .any(|(m, s)| (m - s.q).abs() > self.cfg.tracking_tolerance)
+        {
+            self.filter.reset_to(&q);
+            self.count("resync");
         }
     }
 
@@ -292,6 +388,9 @@ impl Supervisor {
                     ));
                 }
             }
+        }
+        if let Some(why) = self.sensor_fault(now) {
+            r.push(format!("sensor fault: {why}"));
         }
         for s in &self.lost {
             r.push(format!("{s} liveliness lost"));
@@ -370,11 +469,19 @@ impl Supervisor {
 
     /// One control cycle at `now`.
     pub fn tick(&mut self, now: Instant) -> Tick {
+        if self.sensor_fault.is_some() && self.sensor_fault(now).is_none() {
+            self.sensor_fault = None;
+            self.count("state/fault_cleared");
+        }
         if !self.initialized {
+            let reasons = match self.sensor_fault(now) {
+                Some(why) => vec![format!("sensor fault: {why}")],
+                None => vec!["waiting for the robot's joint state".into()],
+            };
             return Tick {
                 command: None,
                 state: SafetyState::Holding,
-                reasons: vec!["waiting for the robot's joint state".into()],
+                reasons,
                 speed_scale: 0.0,
                 min_separation_m: None,
             };
@@ -476,20 +583,6 @@ impl Supervisor {
             _ => Reference::hold(self.filter.joints().len()),
         };
         let steps = self.filter.step(&reference, &scales, &brake);
-        if stopping && self.filter.all_rest() {
-            // At rest: commanded and measured may now be reconciled without any motion.
-            if self.measured.iter().all(Option::is_some) {
-                let q: Vec<f64> = self.measured.iter().map(|q| q.unwrap_or(0.0)).collect();
-                if q.iter()
-                    .zip(self.filter.state())
-                    .any(|(m, s)| (m - s.q).abs() > self.cfg.tracking_tolerance)
-                {
-                    self.filter.reset_to(&q);
-                    self.count("resync");
-                }
-            }
-        }
-
         // The command: the rollout of the tracking horizon, then a stop to rest.
         let command = self.command(plan_t.map(|t| t + dt), stopping, &scales);
         self.step_twist(plan_t, stopping, scale);

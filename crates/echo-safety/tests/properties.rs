@@ -1,4 +1,4 @@
-//! Property tests over adversarial references, plans and states. Cases per property: 10 000
+//! Property tests over adversarial references, plans, commanded and measured states. Cases per property: 10 000
 //! (PROPTEST_CASES raises it, e.g. PROPTEST_CASES=200000 for a nightly run).
 
 use std::time::{Duration, Instant};
@@ -131,7 +131,7 @@ proptest! {
         let q0: Vec<f64> = limits.iter().zip(&start).map(|(l, s)| l.lower + s * (l.upper - l.lower)).collect();
         let t0 = Instant::now();
         let mut now = t0;
-        sup.on_joint_state(&state_msg(&joints, &q0), now);
+        sup.on_joint_state(&state_msg(&joints, &q0), now).unwrap();
         let mut prev_first: Option<Vec<(f64, f64)>> = None;
         for (stamp, (targets, duration, ticks)) in (1u64..).zip(plans.iter()) {
             // A plan that starts where the robot is commanded to be, then jumps to `targets`.
@@ -151,7 +151,7 @@ proptest! {
             for _ in 0..=*ticks {
                 now += Duration::from_millis(20);
                 let q: Vec<f64> = sup.filter().state().iter().map(|s| s.q).collect();
-                sup.on_joint_state(&state_msg(&joints, &q), now);
+                sup.on_joint_state(&state_msg(&joints, &q), now).unwrap();
                 let tick = sup.tick(now);
                 let cmd = tick.command.expect("a command once the state is known");
                 let mut first = vec![];
@@ -188,6 +188,132 @@ proptest! {
                 }
                 prev_first = Some(first);
             }
+        }
+    }
+}
+
+/// What the robot's joint-state input says in one control cycle.
+#[derive(Debug, Clone)]
+enum Measured {
+    /// The robot is where it was commanded.
+    Faithful,
+    /// Nothing arrives (stale).
+    Silent,
+    /// One joint off by a plausible amount, consistently.
+    Offset(usize, f64),
+    /// One joint anywhere, even far outside any limit.
+    Anywhere(usize, f64),
+    /// One joint not a number.
+    NonFinite(usize, f64),
+    /// A faithful sample and a second stream's sample with one joint anywhere.
+    Interleaved(usize, f64),
+    /// A sample from another sender.
+    Foreign(usize, f64),
+}
+
+fn measured_strategy() -> impl Strategy<Value = Measured> {
+    let joint = 0usize..17;
+    let anywhere = prop_oneof![-1e9..1e9f64, -4.0..4.0f64, Just(2.5), Just(50.0)];
+    prop_oneof![
+        4 => Just(Measured::Faithful),
+        1 => Just(Measured::Silent),
+        1 => (joint.clone(), -0.6..0.6f64).prop_map(|(j, d)| Measured::Offset(j, d)),
+        2 => (joint.clone(), anywhere.clone()).prop_map(|(j, x)| Measured::Anywhere(j, x)),
+        1 => (joint.clone(), prop_oneof![Just(f64::NAN), Just(f64::INFINITY), Just(f64::NEG_INFINITY)])
+            .prop_map(|(j, x)| Measured::NonFinite(j, x)),
+        2 => (joint.clone(), anywhere.clone()).prop_map(|(j, x)| Measured::Interleaved(j, x)),
+        1 => (joint, anywhere).prop_map(|(j, x)| Measured::Foreign(j, x)),
+    ]
+}
+
+fn sample(joints: &[String], q: &[f64], source: &str) -> JointState {
+    JointState {
+        header: Header::new("tiago", source, ""),
+        ..state_msg(joints, q)
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: cases(), ..ProptestConfig::default() })]
+
+    /// Adversarial measured states (outside any limit, jumps, non-finite, interleaved and
+    /// foreign sources, silence) alongside adversarial plans: every command point stays inside
+    /// the hard limits (and inside the operating limits, the robot having started inside them),
+    /// and consecutive commands keep the velocity, acceleration and jerk limits — whatever the
+    /// measured state says.
+    #[test]
+    fn no_measured_state_moves_a_command_out_of_the_limits(
+        start in prop::collection::vec(0.0..1.0f64, 17),
+        cycles in prop::collection::vec((measured_strategy(), prop::option::weighted(0.3, prop::collection::vec(-8.0..8.0f64, 17))), 1..30),
+    ) {
+        let (mut sup, joints, limits) = supervisor_fixture();
+        let hard = sup.filter().hard_limits().to_vec();
+        let q0: Vec<f64> = limits.iter().zip(&start).map(|(l, s)| l.lower + s * (l.upper - l.lower)).collect();
+        let mut now = Instant::now();
+        sup.on_joint_state(&state_msg(&joints, &q0), now).unwrap();
+        let dt = 0.02;
+        let mut prev: Option<Vec<(f64, f64, f64)>> = None;
+        for (stamp, (m, plan)) in (1u64..).zip(&cycles) {
+            now += Duration::from_millis(20);
+            let q: Vec<f64> = sup.filter().state().iter().map(|s| s.q).collect();
+            let with = |j: usize, x: f64| { let mut v = q.clone(); v[j] = x; v };
+            match m {
+                Measured::Faithful => { let _ = sup.on_joint_state(&state_msg(&joints, &q), now); }
+                Measured::Silent => {}
+                Measured::Offset(j, d) => { let _ = sup.on_joint_state(&state_msg(&joints, &with(*j, q[*j] + d)), now); }
+                Measured::Anywhere(j, x) => { let _ = sup.on_joint_state(&state_msg(&joints, &with(*j, *x)), now); }
+                Measured::NonFinite(j, x) => { let _ = sup.on_joint_state(&state_msg(&joints, &with(*j, *x)), now); }
+                Measured::Interleaved(j, x) => {
+                    let _ = sup.on_joint_state(&state_msg(&joints, &q), now);
+                    let _ = sup.on_joint_state(&state_msg(&joints, &with(*j, *x)), now);
+                }
+                Measured::Foreign(j, x) => {
+                    prop_assert!(sup.on_joint_state(&sample(&joints, &with(*j, *x), "intruder"), now).is_err());
+                }
+            }
+            if let Some(targets) = plan {
+                let mut h = Header::new("tiago", "forecaster", "odom");
+                h.stamp_ns = stamp;
+                let p = RobotPlan {
+                    header: h,
+                    mode: ControlMode::Forecast,
+                    joint_names: joints.clone(),
+                    points: vec![
+                        PlanPoint { t: 0.0, positions: q.clone(), base: None },
+                        PlanPoint { t: 0.5, positions: targets.clone(), base: None },
+                    ],
+                };
+                let _ = sup.on_plan(&p, now);
+            }
+            let tick = sup.tick(now);
+            let cmd = tick.command.expect("a command once the state is known");
+            let mut first = vec![(f64::NAN, f64::NAN, f64::NAN); joints.len()];
+            for tr in &cmd.trajectories {
+                for p in &tr.points {
+                    for (k, n) in tr.joint_names.iter().enumerate() {
+                        let j = joints.iter().position(|x| x == n).unwrap();
+                        let (lo, hi) = hard[j];
+                        let l = &limits[j];
+                        let x = p.positions[k];
+                        prop_assert!(x.is_finite() && x >= lo - EPS && x <= hi + EPS, "{n} at {x} outside hard [{lo}, {hi}]");
+                        prop_assert!(x >= l.lower - EPS && x <= l.upper + EPS, "{n} at {x} outside operating limits");
+                    }
+                }
+                for (k, n) in tr.joint_names.iter().enumerate() {
+                    let j = joints.iter().position(|x| x == n).unwrap();
+                    let p0 = &tr.points[0];
+                    first[j] = (p0.positions[k], p0.velocities[k], p0.accelerations[k]);
+                }
+            }
+            if let Some(pf) = &prev {
+                for (j, ((q1, v1, a1), (q0, v0, a0))) in first.iter().zip(pf).enumerate() {
+                    let l = &limits[j];
+                    prop_assert!((q1 - q0).abs() <= l.velocity * dt * (1.0 + 1e-6) + EPS, "{}: position step {q0} → {q1}", joints[j]);
+                    prop_assert!((v1 - v0).abs() <= l.acceleration * dt * (1.0 + 1e-6) + EPS, "{}: velocity step {v0} → {v1}", joints[j]);
+                    prop_assert!((a1 - a0).abs() <= l.jerk * dt * (1.0 + 1e-9) + EPS, "{}: jerk {a0} → {a1}", joints[j]);
+                }
+            }
+            prev = Some(first);
         }
     }
 }

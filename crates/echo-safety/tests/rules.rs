@@ -1,5 +1,5 @@
 //! One test per safety rule: timeout, recovery, e-stop, invalid plans, stale state,
-//! liveliness, separation, contact, self-collision.
+//! measured-state faults and source lock, liveliness, separation, contact, self-collision.
 
 use std::time::{Duration, Instant};
 
@@ -45,14 +45,23 @@ impl Rig {
     }
 
     fn feed_state(&mut self, q: &[f64]) {
+        let _ = self.feed_from("robot", q);
+    }
+
+    /// A joint state from sender `source`.
+    fn feed_from(
+        &mut self,
+        source: &str,
+        q: &[f64],
+    ) -> Result<(), echo_safety::measured::StateFault> {
         let js = JointState {
-            header: Header::new("tiago", "robot", ""),
+            header: Header::new("tiago", source, ""),
             name: self.joints.clone(),
             position: q.to_vec(),
             velocity: vec![],
             base: None,
         };
-        self.sup.on_joint_state(&js, self.now);
+        self.sup.on_joint_state(&js, self.now)
     }
 
     /// A plan moving `joint` by `delta` over `secs`, from where the robot is commanded to be.
@@ -438,4 +447,252 @@ fn arms_never_drive_into_each_other() {
         assert!(d > -0.02, "arms interpenetrate: {d}");
     }
     assert!(braked, "the self-collision rule engaged");
+}
+
+/// Hard limits of the filter's joints, from the URDF.
+fn hard_limits(r: &Rig) -> Vec<(f64, f64)> {
+    r.sup.filter().hard_limits().to_vec()
+}
+
+/// Every point of `cmd` inside the hard limits; returns the first point's positions by joint.
+fn check_inside_hard(r: &Rig, cmd: &RobotCommand) -> Vec<f64> {
+    let hard = hard_limits(r);
+    let mut first = vec![f64::NAN; r.joints.len()];
+    for tr in &cmd.trajectories {
+        for p in &tr.points {
+            for (n, q) in tr.joint_names.iter().zip(&p.positions) {
+                let i = r.idx(n);
+                assert!(
+                    *q >= hard[i].0 - 1e-9 && *q <= hard[i].1 + 1e-9,
+                    "{n} commanded {q} outside its hard limits {:?}",
+                    hard[i]
+                );
+            }
+        }
+        for (n, q) in tr.joint_names.iter().zip(&tr.points[0].positions) {
+            first[r.idx(n)] = *q;
+        }
+    }
+    first
+}
+
+#[test]
+fn out_of_limit_joint_states_never_reach_the_command() {
+    // A second stream interleaved with the real robot reports joints far outside their hard
+    // limits for 3 s at 100 Hz; then it stops on its own.
+    for (joint, bad) in [
+        ("arm_right_1_joint", 2.5),
+        ("arm_right_1_joint", 1e9),
+        ("torso_lift_joint", 50.0),
+        ("arm_left_4_joint", -7.0),
+    ] {
+        let mut r = Rig::new(SafetyConfig::default());
+        let p = r.plan("head_1_joint", 0.3, 1.0);
+        r.sup.on_plan(&p, r.now).unwrap();
+        for _ in 0..10 {
+            r.tick();
+        }
+        let v = r.sup.filter().limits()[r.idx(joint)].velocity;
+        let cmd = r.sup.tick(r.now).command.unwrap();
+        let mut prev = check_inside_hard(&r, &cmd);
+        let mut faulted = false;
+        for k in 0..150 {
+            r.now += DT;
+            let real = r.q();
+            let mut forged = real.clone();
+            forged[r.idx(joint)] = bad;
+            // Twice per cycle from the robot's own source name (as a second publisher would),
+            // once real, once forged.
+            let _ = r.feed_from("robot", &real);
+            assert!(r.feed_from("robot", &forged).is_err(), "cycle {k}");
+            let t = r.sup.tick(r.now);
+            faulted |= t.reasons.iter().any(|x| x.contains("sensor fault"));
+            assert_ne!(
+                t.state,
+                SafetyState::Following,
+                "cycle {k}: {:?}",
+                t.reasons
+            );
+            let first = check_inside_hard(&r, &t.command.unwrap());
+            for (i, (a, b)) in first.iter().zip(&prev).enumerate() {
+                let vmax = r.sup.filter().limits()[i].velocity;
+                assert!(
+                    (a - b).abs() <= vmax * DT.as_secs_f64() * (1.0 + 1e-6) + 1e-9,
+                    "{}: {b} → {a} between commands",
+                    r.joints[i]
+                );
+            }
+            prev = first;
+        }
+        assert!(faulted, "{joint} = {bad} must be named as a sensor fault");
+        assert!(r.sup.counters()["state/out_of_limits"] > 0);
+        let q_cmd = r.q()[r.idx(joint)];
+        assert!(
+            (q_cmd - bad).abs() > 0.5 && v > 0.0,
+            "{joint} commanded {q_cmd}"
+        );
+        // The forged stream stops: after fault_clear_ms of plausible samples the fault clears.
+        let mut cleared = false;
+        for _ in 0..40 {
+            let t = r.tick();
+            cleared = !t.reasons.iter().any(|x| x.contains("sensor fault"));
+        }
+        assert!(
+            cleared,
+            "the fault clears once the samples are plausible again"
+        );
+        assert_eq!(r.sup.counters()["state/fault_cleared"], 1);
+    }
+}
+
+#[test]
+fn a_consistent_but_wrong_measured_state_never_moves_the_command() {
+    // The measured state drifts away from the command at a speed the joint could move, and
+    // stays there: the robot stops and holds where it was commanded, with no jump in the
+    // command, until the measured state agrees again or the operator resets.
+    let mut r = Rig::new(SafetyConfig::default());
+    let i = r.idx("arm_right_2_joint");
+    let start = r.q();
+    let cmd = r.sup.tick(r.now).command.unwrap();
+    let mut prev = check_inside_hard(&r, &cmd);
+    let mut offset = 0.0;
+    let mut stopped = false;
+    for _ in 0..200 {
+        r.now += DT;
+        offset = (offset - 0.01f64).max(-0.6);
+        let mut m = r.q();
+        m[i] = start[i] + offset;
+        r.feed_from("robot", &m).unwrap();
+        let t = r.sup.tick(r.now);
+        stopped |= t.reasons.iter().any(|x| x.contains("from its command"));
+        let first = check_inside_hard(&r, &t.command.unwrap());
+        assert!(
+            (first[i] - prev[i]).abs() <= 1e-9,
+            "no plan: the command holds still whatever the measured state says"
+        );
+        prev = first;
+    }
+    assert!(stopped);
+    assert!((r.q()[i] - start[i]).abs() < 1e-12);
+    assert_eq!(r.sup.counters().get("resync"), None);
+    // The operator's reset at rest re-anchors at the (plausible) measured position.
+    r.sup.on_estop(&EStop {
+        header: Header::new("tiago", "operator", ""),
+        action: EStopAction::Reset,
+        reason: "arm moved by hand".into(),
+    });
+    assert!((r.q()[i] - (start[i] - 0.6)).abs() < 1e-9);
+    assert_eq!(r.sup.counters()["resync"], 1);
+}
+
+#[test]
+fn joint_states_from_a_second_source_are_refused() {
+    let mut r = Rig::new(SafetyConfig::default());
+    let q = r.q();
+    let mut other = q.clone();
+    other[r.idx("head_2_joint")] += 0.05;
+    let e = r.feed_from("intruder", &other).unwrap_err();
+    assert_eq!(e.reason(), "foreign_source");
+    assert_eq!(r.sup.counters()["state/foreign_source"], 1);
+    let t = r.tick();
+    assert!(
+        !t.reasons.iter().any(|x| x.contains("sensor fault")),
+        "a refused source is not a fault of the robot's sensors"
+    );
+    // A configured source: only it is accepted, even as the first one heard.
+    let cfg = SafetyConfig {
+        state_source: Some("ros2".into()),
+        ..Default::default()
+    };
+    let sup = Supervisor::new(cfg, RobotModel::tiago_dual()).unwrap();
+    let mut r2 = Rig {
+        joints: sup.filter().joints().to_vec(),
+        sup,
+        now: Instant::now(),
+        stamp: 1,
+    };
+    assert!(r2.feed_from("robot", &q).is_err());
+    assert!(r2.sup.tick(r2.now).command.is_none());
+    r2.feed_from("ros2", &q).unwrap();
+    assert!(r2.sup.tick(r2.now).command.is_some());
+}
+
+#[test]
+fn a_robot_starting_beyond_its_hard_limits_gets_no_command() {
+    let sup = Supervisor::new(SafetyConfig::default(), RobotModel::tiago_dual()).unwrap();
+    let mut r = Rig {
+        joints: sup.filter().joints().to_vec(),
+        sup,
+        now: Instant::now(),
+        stamp: 1,
+    };
+    let mut q = vec![0.0; r.joints.len()];
+    q[r.idx("torso_lift_joint")] = 0.2;
+    let mut bad = q.clone();
+    bad[r.idx("torso_lift_joint")] = 50.0;
+    assert!(r.feed_from("robot", &bad).is_err());
+    let t = r.sup.tick(r.now);
+    assert!(t.command.is_none());
+    assert!(t.reasons[0].contains("sensor fault"), "{:?}", t.reasons);
+    // Plausible samples for fault_clear_ms: the robot starts where it is.
+    r.now += Duration::from_millis(10);
+    let _ = r.feed_from("robot", &q); // jump from 50 m: still a fault
+    for _ in 0..30 {
+        r.now += DT;
+        let _ = r.feed_from("robot", &q);
+        r.sup.tick(r.now);
+    }
+    let t = r.sup.tick(r.now);
+    assert!(t.command.is_some(), "{:?}", t.reasons);
+    assert!((r.q()[r.idx("torso_lift_joint")] - 0.2).abs() < 1e-12);
+}
+
+#[test]
+fn a_robot_starting_between_its_soft_and_hard_limits_recovers_inward_slowly() {
+    let sup = Supervisor::new(SafetyConfig::default(), RobotModel::tiago_dual()).unwrap();
+    let mut r = Rig {
+        joints: sup.filter().joints().to_vec(),
+        sup,
+        now: Instant::now(),
+        stamp: 1,
+    };
+    let i = r.idx("head_1_joint");
+    let soft = r.sup.filter().limits()[i];
+    let hard = hard_limits(&r)[i];
+    assert!(hard.1 > soft.upper, "the URDF insets the soft limit");
+    let home = echo_robot::home_pose();
+    let mut q: Vec<f64> = r
+        .joints
+        .iter()
+        .map(|j| home.iter().find(|(n, _)| n == j).map_or(0.0, |(_, v)| *v))
+        .collect();
+    // Beyond the hard limit by less than the tolerance: the command starts at the hard limit.
+    q[i] = hard.1 + 0.005;
+    r.feed_from("robot", &q).unwrap();
+    assert!((r.q()[i] - hard.1).abs() < 1e-12);
+    // A plan asks for a target further out, then for one inside: the joint only moves in,
+    // at the recovery speed while outside its soft range.
+    let p = r.plan_to(&[("head_1_joint", 3.0)], 1.0);
+    r.sup.on_plan(&p, r.now).unwrap();
+    for _ in 0..20 {
+        r.tick();
+        assert!(r.q()[i] <= hard.1 + 1e-12);
+    }
+    let mut max_v: f64 = 0.0;
+    for _ in 0..200 {
+        if r.q()[i] <= soft.upper {
+            break;
+        }
+        let p = r.plan_to(&[("head_1_joint", 0.5)], 1.0);
+        let _ = r.sup.on_plan(&p, r.now);
+        let before = r.q()[i];
+        r.tick();
+        assert!(r.q()[i] <= before + 1e-12, "only inward");
+        max_v = max_v.max(r.sup.filter().state()[i].v.abs());
+    }
+    assert!(r.q()[i] <= soft.upper, "back inside the soft range");
+    assert!(
+        max_v <= 0.2 * soft.velocity + 1e-9,
+        "recovery speed {max_v} over 0.2·V"
+    );
 }

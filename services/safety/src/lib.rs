@@ -128,7 +128,9 @@ pub async fn serve(args: Args, mut stop: Shutdown) -> Result<()> {
             sup.on_intent(&p.msg);
         }
         for s in states.drain() {
-            sup.on_joint_state(&s.msg, s.at);
+            if let Err(e) = sup.on_joint_state(&s.msg, s.at) {
+                stats.rejected("robot_state", e.reason(), &e.to_string());
+            }
         }
         if let Some(r) = &ros {
             while let Ok(Some(sample)) = r.states.try_recv() {
@@ -139,7 +141,11 @@ pub async fn serve(args: Args, mut stop: Shutdown) -> Result<()> {
                         echo_ros2::joint_state(&js, robot.as_str(), "ros2")
                             .map_err(|e| e.to_string())
                     }) {
-                    Ok(js) => sup.on_joint_state(&js, now),
+                    Ok(js) => {
+                        if let Err(e) = sup.on_joint_state(&js, now) {
+                            stats.rejected("ros2_joint_states", e.reason(), &e.to_string());
+                        }
+                    }
                     Err(e) => stats.rejected("ros2_joint_states", "invalid", &e),
                 }
             }
