@@ -2,7 +2,7 @@
 //! model reads. Inputs: `obs` (b, 2, obs, 73) and, for text models, `text` (b, text_dim); output
 //! `forecast` (b, 2, pred, 73). The batch dimension is dynamic.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
@@ -17,10 +17,22 @@ use crate::proto::*;
 /// ONNX opset the graph uses (LayerNormalization needs 17).
 pub const OPSET: i64 = 17;
 
+/// Key of a constant initializer: element type, shape and little-endian bytes.
+type ConstKey = (i32, Vec<i64>, Vec<u8>);
+
+/// The graph being written. Each stored tensor becomes one initializer (per orientation),
+/// shared by every node that reads it — the self-attention and time-mixing layers run once per
+/// agent with the same weights — and each distinct constant is stored once.
 struct Graph {
     weights: HashMap<String, Tensor>,
     nodes: Vec<NodeProto>,
     inits: Vec<TensorProto>,
+    /// Initializer names written so far.
+    names: HashSet<String>,
+    /// Stored tensor (name, transposed) → its initializer.
+    params: HashMap<(String, bool), String>,
+    /// Constant contents → its initializer.
+    consts: HashMap<ConstKey, String>,
     next: usize,
 }
 
@@ -89,30 +101,50 @@ impl Graph {
             .ok_or_else(|| anyhow!("checkpoint has no tensor '{name}'"))
     }
 
-    fn init_f32(&mut self, name: &str, dims: &[usize], data: &[f32]) -> String {
+    /// A named initializer; the name must be new.
+    fn init_f32(&mut self, name: &str, dims: &[usize], data: &[f32]) -> Result<String> {
+        anyhow::ensure!(
+            self.names.insert(name.to_string()),
+            "initializer '{name}' written twice"
+        );
         self.inits.push(TensorProto {
             dims: dims.iter().map(|d| *d as i64).collect(),
             data_type: data_type::FLOAT,
             name: name.into(),
             raw_data: data.iter().flat_map(|x| x.to_le_bytes()).collect(),
         });
-        name.to_string()
+        Ok(name.to_string())
     }
 
-    fn init_i64(&mut self, hint: &str, data: &[i64]) -> String {
-        let name = self.fresh(hint);
+    /// A constant initializer, written once per distinct contents (named after the first
+    /// `hint` that asks for it) and shared by every later node that needs the same values.
+    fn constant(&mut self, hint: &str, data_type: i32, dims: Vec<i64>, raw: Vec<u8>) -> String {
+        let key = (data_type, dims, raw);
+        if let Some(name) = self.consts.get(&key) {
+            return name.clone();
+        }
+        let mut name = self.fresh(hint);
+        while self.names.contains(&name) {
+            name = self.fresh(hint);
+        }
+        self.names.insert(name.clone());
         self.inits.push(TensorProto {
-            dims: vec![data.len() as i64],
-            data_type: data_type::INT64,
+            dims: key.1.clone(),
+            data_type,
             name: name.clone(),
-            raw_data: data.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            raw_data: key.2.clone(),
         });
+        self.consts.insert(key, name.clone());
         name
     }
 
+    fn init_i64(&mut self, hint: &str, data: &[i64]) -> String {
+        let raw = data.iter().flat_map(|x| x.to_le_bytes()).collect();
+        self.constant(hint, data_type::INT64, vec![data.len() as i64], raw)
+    }
+
     fn scalar(&mut self, hint: &str, v: f32) -> String {
-        let name = self.fresh(hint);
-        self.init_f32(&name, &[], &[v])
+        self.constant(hint, data_type::FLOAT, vec![], v.to_le_bytes().to_vec())
     }
 
     fn op(&mut self, op: &str, inputs: &[&str], attrs: Vec<AttributeProto>) -> String {
@@ -127,13 +159,27 @@ impl Graph {
         out
     }
 
-    /// Stored tensor as an initializer (optionally transposed: Linear weights are (out, in)).
+    /// Stored tensor as an initializer (optionally transposed: Linear weights are (out, in)),
+    /// written on first use and shared afterwards. It keeps the checkpoint's name unless the
+    /// other orientation already has it.
     fn param(&mut self, name: &str, transpose: bool) -> Result<String> {
+        let key = (name.to_string(), transpose);
+        if let Some(init) = self.params.get(&key) {
+            return Ok(init.clone());
+        }
         let t = self.weight(name)?.clone();
         let t = if transpose { t.t()?.contiguous()? } else { t };
         let dims = t.dims().to_vec();
         let data = t.flatten_all()?.to_vec1::<f32>()?;
-        Ok(self.init_f32(name, &dims, &data))
+        let init = if self.names.contains(name) {
+            let suffix = if transpose { "transposed" } else { "stored" };
+            format!("{name}.{suffix}")
+        } else {
+            name.to_string()
+        };
+        let init = self.init_f32(&init, &dims, &data)?;
+        self.params.insert(key, init.clone());
+        Ok(init)
     }
 
     fn linear(&mut self, x: &str, prefix: &str) -> Result<String> {
@@ -250,6 +296,9 @@ pub fn build(weights: HashMap<String, Tensor>, cfg: &ForecasterConfig) -> Result
         weights,
         nodes: vec![],
         inits: vec![],
+        names: HashSet::new(),
+        params: HashMap::new(),
+        consts: HashMap::new(),
         next: 0,
     };
     let (d, heads) = (cfg.d_model, cfg.heads);
@@ -265,14 +314,14 @@ pub fn build(weights: HashMap<String, Tensor>, cfg: &ForecasterConfig) -> Result
             pe[p * d + 2 * i + 1] = (p as f64 * w).cos() as f32;
         }
     }
-    let pe = g.init_f32("positional", &[1, cfg.frames(), d], &pe);
+    let pe = g.init_f32("positional", &[1, cfg.frames(), d], &pe)?;
     let dct = if cfg.dct {
         let m = dct_matrix(cfg.frames(), &Device::Cpu)?;
         let dims = m.dims().to_vec();
         let data = m.flatten_all()?.to_vec1::<f32>()?;
-        let fwd = g.init_f32("dct", &dims, &data);
+        let fwd = g.init_f32("dct", &dims, &data)?;
         let inv = m.t()?.contiguous()?.flatten_all()?.to_vec1::<f32>()?;
-        let inv = g.init_f32("idct", &dims, &inv);
+        let inv = g.init_f32("idct", &dims, &inv)?;
         Some((fwd, inv))
     } else {
         None
@@ -363,6 +412,7 @@ pub fn build(weights: HashMap<String, Tensor>, cfg: &ForecasterConfig) -> Result
     if text {
         inputs.push(value_info("text", &[Err("batch"), Ok(cfg.text_dim as i64)]));
     }
+    check_order(&inputs, &g.inits, &g.nodes)?;
     Ok(ModelProto {
         ir_version: 8,
         producer_name: "echo".into(),
@@ -383,6 +433,37 @@ pub fn build(weights: HashMap<String, Tensor>, cfg: &ForecasterConfig) -> Result
             version: OPSET,
         }],
     })
+}
+
+/// The graph's values are defined once each, before they are read: initializer names are unique,
+/// each node output is new (SSA), and each node input is a graph input, an initializer or an
+/// earlier node's output.
+fn check_order(
+    inputs: &[ValueInfoProto],
+    inits: &[TensorProto],
+    nodes: &[NodeProto],
+) -> Result<()> {
+    let mut defined: HashSet<&str> = inputs.iter().map(|i| i.name.as_str()).collect();
+    for t in inits {
+        anyhow::ensure!(
+            defined.insert(&t.name),
+            "initializer '{}' defined twice",
+            t.name
+        );
+    }
+    for n in nodes {
+        if let Some(i) = n.input.iter().find(|i| !defined.contains(i.as_str())) {
+            anyhow::bail!(
+                "{} '{}' reads '{i}' before it is defined",
+                n.op_type,
+                n.name
+            );
+        }
+        for o in &n.output {
+            anyhow::ensure!(defined.insert(o), "'{o}' defined twice");
+        }
+    }
+    Ok(())
 }
 
 /// The ONNX model of `<stem>.safetensors` for architecture `cfg`.

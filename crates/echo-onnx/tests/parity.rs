@@ -147,7 +147,8 @@ fn shipped_checkpoint_exports_and_matches() {
         &candle.predict(b, &obs, &text).unwrap(),
         &ort.predict(b, &obs, &text).unwrap(),
     );
-    assert!(d < 1e-4, "shipped model: max difference {d}");
+    eprintln!("shipped model, batch {b}: max |candle − ort| {d:.2e}");
+    assert!(d <= 1e-4, "shipped model: max difference {d}");
 }
 
 #[test]
