@@ -22,6 +22,7 @@ pub struct Bus {
     service: String,
     source: String,
     stats: Arc<Stats>,
+    max_clock_skew_ms: u64,
 }
 
 impl std::fmt::Debug for Bus {
@@ -64,6 +65,7 @@ impl Bus {
             service: service.to_string(),
             stats: Arc::new(Stats::new(service)),
             source,
+            max_clock_skew_ms: args.max_clock_skew_ms(),
         })
     }
 
@@ -128,11 +130,10 @@ impl Bus {
     /// land in the returned [`Inbox`] with the topic's delivery policy.
     pub async fn subscribe<M: Message>(&self, topic: &Topic<M>) -> Result<Inbox<M>> {
         let (tx, inbox) = inbox::channel(topic.delivery, topic.name, self.stats.clone());
-        let ingress = Mutex::new(Ingress::new(
-            topic.name,
-            topic.robot.clone(),
-            self.stats.clone(),
-        ));
+        let ingress = Mutex::new(
+            Ingress::new(topic.name, topic.robot.clone(), self.stats.clone())
+                .with_max_clock_skew_ms(self.max_clock_skew_ms),
+        );
         let sub = self
             .session
             .declare_subscriber(topic.key.clone())

@@ -36,6 +36,10 @@ pub struct BusArgs {
     /// Identity (certificate common name) inside `--tls-dir`; default: the service's name.
     #[arg(long = "tls-name", env = "ECHO_TLS_NAME")]
     pub tls_name: Option<String>,
+    /// Messages stamped further ahead of this host's clock than this are refused on receipt
+    /// (`from_future`), ms; default 500 (`ingress::DEFAULT_MAX_CLOCK_SKEW_MS`).
+    #[arg(long = "max-clock-skew-ms", env = "ECHO_MAX_CLOCK_SKEW_MS")]
+    pub max_clock_skew_ms: Option<u64>,
 }
 
 impl BusArgs {
@@ -57,6 +61,7 @@ impl BusArgs {
             no_multicast_scouting: true,
             tls_dir: None,
             tls_name: None,
+            max_clock_skew_ms: None,
         }
     }
 
@@ -90,7 +95,18 @@ impl BusArgs {
             v.push("--tls-name".into());
             v.push(n.clone());
         }
+        if let Some(ms) = self.max_clock_skew_ms {
+            v.push("--max-clock-skew-ms".into());
+            v.push(ms.to_string());
+        }
         v
+    }
+
+    /// Clock skew allowed on receipt, ms ([`crate::ingress::DEFAULT_MAX_CLOCK_SKEW_MS`] unless
+    /// `--max-clock-skew-ms` is given).
+    pub fn max_clock_skew_ms(&self) -> u64 {
+        self.max_clock_skew_ms
+            .unwrap_or(crate::ingress::DEFAULT_MAX_CLOCK_SKEW_MS)
     }
 
     /// These flags with `service`'s TLS identity ([`default_identity`]) unless `--tls-name`
@@ -236,6 +252,23 @@ mod tests {
         assert_eq!(cfg.get_json("scouting/multicast/enabled").unwrap(), "false");
         let cli = a.to_cli();
         assert!(cli.contains(&"tcp/127.0.0.1:7002,tcp/127.0.0.1:7003".to_string()));
+        assert!(!cli.contains(&"--max-clock-skew-ms".to_string()));
+        assert_eq!(a.max_clock_skew_ms(), 500);
+    }
+
+    #[test]
+    fn the_clock_skew_flag_parses_and_passes_on() {
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(flatten)]
+            bus: BusArgs,
+        }
+        use clap::Parser;
+        let cli = Cli::try_parse_from(["x", "--max-clock-skew-ms", "1500"]).unwrap();
+        assert_eq!(cli.bus.max_clock_skew_ms(), 1500);
+        let again =
+            Cli::try_parse_from(std::iter::once("x".to_string()).chain(cli.bus.to_cli())).unwrap();
+        assert_eq!(again.bus.max_clock_skew_ms, Some(1500));
     }
 
     #[test]

@@ -1,6 +1,13 @@
 //! Both agents' joints at the model rate, newest last, with gap handling.
+//!
+//! Stamps are the sender's wall clock (`header.stamp_ns`); two guards keep one bad stamp from
+//! wedging a history (see [`History::push_at`]): a frame stamped further ahead of this host's
+//! clock than `max_ahead` never enters it (`from_future`), and when every frame has been
+//! refused as reordered for `resync_after` since the last accepted one, the history restarts
+//! from the next frame ([`Push::Resynced`]).
 
 use std::collections::VecDeque;
+use std::time::{Duration, Instant};
 
 use echo_motion::skeleton::NUM_JOINTS;
 use nalgebra::Vector3;
@@ -31,6 +38,14 @@ pub enum HistoryError {
         /// The newest stamp held.
         last_ns: u64,
     },
+    /// Stamped further ahead of this host's clock than allowed.
+    #[error("frame stamped {ahead_ms:.1} ms ahead of this host's clock (limit {limit_ms:.1} ms)")]
+    FromFuture {
+        /// How far ahead, ms.
+        ahead_ms: f64,
+        /// Accepted maximum, ms.
+        limit_ms: f64,
+    },
 }
 
 impl HistoryError {
@@ -38,6 +53,7 @@ impl HistoryError {
     pub fn reason(&self) -> &'static str {
         match self {
             HistoryError::Reordered { .. } => "reordered",
+            HistoryError::FromFuture { .. } => "from_future",
         }
     }
 }
@@ -57,7 +73,20 @@ pub enum Push {
         /// Frames missing.
         missing: usize,
     },
+    /// Frames had been refused as reordered for at least the resync bound since the last one
+    /// accepted (the sender's clock stepped back, or a frame stamped ahead of the stream got
+    /// in): the history restarted from this frame, which was not newer than the last one held.
+    Resynced {
+        /// Time since the last accepted frame, ms.
+        stalled_ms: u64,
+    },
 }
+
+/// Default of how far ahead of this host's clock a frame may be stamped, ms.
+pub const DEFAULT_MAX_AHEAD_MS: f64 = 1000.0;
+
+/// Default of how long frames may be refused as reordered before the history restarts, ms.
+pub const DEFAULT_RESYNC_AFTER_MS: f64 = 500.0;
 
 /// Ring buffer of [`Pair`]s on the model-rate grid.
 #[derive(Debug, Clone)]
@@ -67,11 +96,16 @@ pub struct History {
     max_fill: usize,
     frames: VecDeque<Frame>,
     last_ns: Option<u64>,
+    max_ahead_ns: u64,
+    resync_after: Duration,
+    /// When the newest frame was accepted (receiver's monotonic clock).
+    accepted_at: Option<Instant>,
 }
 
 impl History {
     /// `rate_hz`: model rate; `capacity`: frames kept (≥ the model's observed frames);
-    /// `max_fill`: longest gap, in frames, filled by interpolation.
+    /// `max_fill`: longest gap, in frames, filled by interpolation. The guards take their
+    /// defaults ([`DEFAULT_MAX_AHEAD_MS`], [`DEFAULT_RESYNC_AFTER_MS`]).
     pub fn new(rate_hz: f64, capacity: usize, max_fill: usize) -> History {
         History {
             period_ns: (1e9 / rate_hz.max(1e-3)) as u64,
@@ -79,7 +113,21 @@ impl History {
             max_fill,
             frames: VecDeque::with_capacity(capacity.max(1)),
             last_ns: None,
+            max_ahead_ns: 0,
+            resync_after: Duration::ZERO,
+            accepted_at: None,
         }
+        .with_guards(DEFAULT_MAX_AHEAD_MS, DEFAULT_RESYNC_AFTER_MS)
+    }
+
+    /// Refuse frames stamped more than `max_ahead_ms` ahead of this host's clock; restart after
+    /// `resync_after_ms` of frames refused as reordered (negative or NaN: 0).
+    pub fn with_guards(mut self, max_ahead_ms: f64, resync_after_ms: f64) -> History {
+        let ms = |v: f64| if v.is_nan() { 0.0 } else { v.max(0.0) };
+        self.max_ahead_ns = (ms(max_ahead_ms) * 1e6) as u64;
+        self.resync_after =
+            Duration::try_from_secs_f64(ms(resync_after_ms) / 1e3).unwrap_or(Duration::MAX);
+        self
     }
 
     /// Frames held.
@@ -101,6 +149,19 @@ impl History {
     pub fn clear(&mut self) {
         self.frames.clear();
         self.last_ns = None;
+        self.accepted_at = None;
+    }
+
+    /// `Ok` unless `stamp_ns` lies further ahead of `now_ns` (this host's wall clock) than
+    /// allowed. Nothing changes either way.
+    pub fn check_ahead(&self, stamp_ns: u64, now_ns: u64) -> Result<(), HistoryError> {
+        if stamp_ns <= now_ns.saturating_add(self.max_ahead_ns) {
+            return Ok(());
+        }
+        Err(HistoryError::FromFuture {
+            ahead_ms: (stamp_ns - now_ns) as f64 / 1e6,
+            limit_ms: self.max_ahead_ns as f64 / 1e6,
+        })
     }
 
     /// The newest `n` frames, oldest first, if that many are held.
@@ -121,17 +182,49 @@ impl History {
         self.frames.push_back(p);
     }
 
-    /// Add the frame observed at `stamp_ns`. Frames arrive on the model-rate grid; a frame that
+    /// [`push_at`](Self::push_at) now (this host's wall clock and monotonic clock).
+    pub fn push(&mut self, stamp_ns: u64, pair: Frame) -> Result<Push, HistoryError> {
+        self.push_at(stamp_ns, pair, echo_msgs::now_ns(), Instant::now())
+    }
+
+    /// Add the frame observed at `stamp_ns`, received at `now_ns` on this host's wall clock
+    /// and `now` on its monotonic clock. Frames arrive on the model-rate grid; a frame that
     /// lands `k > 1` periods after the last one means `k − 1` frames were lost: up to
     /// `max_fill` are interpolated, more restart the history.
-    pub fn push(&mut self, stamp_ns: u64, pair: Frame) -> Result<Push, HistoryError> {
+    ///
+    /// A frame stamped more than `max_ahead` after `now_ns` is refused (`from_future`) and
+    /// changes nothing. A frame not newer than the last one is refused (`reordered`), unless no
+    /// frame has been accepted for `resync_after`: then the history restarts from it
+    /// ([`Push::Resynced`]), so no stamp, however far ahead of the stream, blocks it for
+    /// longer than that.
+    pub fn push_at(
+        &mut self,
+        stamp_ns: u64,
+        pair: Frame,
+        now_ns: u64,
+        now: Instant,
+    ) -> Result<Push, HistoryError> {
+        self.check_ahead(stamp_ns, now_ns)?;
         let Some(last_ns) = self.last_ns else {
             self.append(pair);
             self.last_ns = Some(stamp_ns);
+            self.accepted_at = Some(now);
             return Ok(Push::Appended);
         };
         if stamp_ns <= last_ns {
-            return Err(HistoryError::Reordered { stamp_ns, last_ns });
+            let stalled = self
+                .accepted_at
+                .map_or(Duration::MAX, |t| now.saturating_duration_since(t));
+            if stalled < self.resync_after {
+                return Err(HistoryError::Reordered { stamp_ns, last_ns });
+            }
+            self.frames.clear();
+            self.append(pair);
+            self.last_ns = Some(stamp_ns);
+            self.accepted_at = Some(now);
+            return Ok(Push::Resynced {
+                stalled_ms: stalled.as_millis().min(u64::MAX as u128) as u64,
+            });
         }
         let steps = ((stamp_ns - last_ns) as f64 / self.period_ns as f64)
             .round()
@@ -161,6 +254,7 @@ impl History {
         };
         self.append(pair);
         self.last_ns = Some(stamp_ns);
+        self.accepted_at = Some(now);
         Ok(out)
     }
 }
@@ -221,5 +315,73 @@ mod tests {
         let mut h = History::new(15.0, 8, 3);
         h.push(0, pair(0.0)).unwrap();
         assert_eq!(h.push(P + P / 3, pair(1.0)), Ok(Push::Appended));
+    }
+
+    #[test]
+    fn frames_stamped_ahead_of_this_hosts_clock_never_enter() {
+        let mut h = History::new(15.0, 8, 3).with_guards(500.0, 500.0);
+        let now_ns = 1_000 * P;
+        let t0 = Instant::now();
+        for k in 0..3 {
+            h.push_at(990 * P + k * P, pair(k as f64), now_ns, t0)
+                .unwrap();
+        }
+        for stamp in [u64::MAX, now_ns + 600_000_000] {
+            assert!(matches!(
+                h.push_at(stamp, pair(9.0), now_ns, t0),
+                Err(HistoryError::FromFuture { .. })
+            ));
+        }
+        assert_eq!((h.len(), h.last_stamp_ns()), (3, Some(992 * P)));
+        assert_eq!(
+            h.push_at(993 * P, pair(3.0), now_ns, t0),
+            Ok(Push::Appended)
+        );
+        // Within the skew allowed: taken (here a long gap, so a restart).
+        assert_eq!(
+            h.push_at(now_ns + 400_000_000, pair(4.0), now_ns, t0),
+            Ok(Push::Restarted { missing: 12 })
+        );
+    }
+
+    #[test]
+    fn frames_refused_as_reordered_for_too_long_restart_the_history() {
+        let ms = |n: u64| Duration::from_millis(n);
+        let mut h = History::new(15.0, 8, 3).with_guards(500.0, 500.0);
+        let now_ns = u64::MAX / 2;
+        let t0 = Instant::now();
+        for k in 0..5 {
+            h.push_at(k * P, pair(k as f64), now_ns, t0 + ms(67 * k))
+                .unwrap();
+        }
+        // One frame stamped a minute ahead of the stream gets in (a long gap: a restart) …
+        let t = t0 + ms(67 * 5);
+        assert!(matches!(
+            h.push_at(900 * P, pair(9.0), now_ns, t),
+            Ok(Push::Restarted { .. })
+        ));
+        // … and the real stream is refused as reordered, but only for `resync_after`.
+        for k in 5..12 {
+            let at = t + ms(67 * (k - 4));
+            assert!(at - t < ms(500));
+            assert!(matches!(
+                h.push_at(k * P, pair(k as f64), now_ns, at),
+                Err(HistoryError::Reordered { .. })
+            ));
+        }
+        assert_eq!(
+            h.push_at(12 * P, pair(12.0), now_ns, t + ms(500)),
+            Ok(Push::Resynced { stalled_ms: 500 })
+        );
+        assert_eq!((h.len(), h.last_stamp_ns()), (1, Some(12 * P)));
+        assert_eq!(
+            h.push_at(13 * P, pair(13.0), now_ns, t + ms(567)),
+            Ok(Push::Appended)
+        );
+        // A reordered frame soon after an accepted one is still refused.
+        assert!(matches!(
+            h.push_at(12 * P, pair(12.0), now_ns, t + ms(600)),
+            Err(HistoryError::Reordered { .. })
+        ));
     }
 }

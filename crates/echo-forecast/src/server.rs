@@ -13,7 +13,10 @@ use echo_text::SentenceEncoder;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use crate::history::{Frame, History, HistoryError, Pair, Push, ROBOT_STATE};
+use crate::history::{
+    Frame, History, HistoryError, Pair, Push, DEFAULT_MAX_AHEAD_MS, DEFAULT_RESYNC_AFTER_MS,
+    ROBOT_STATE,
+};
 use crate::proxy::RobotProxy;
 use echo_hri::data::{decode_robot, encode_robot, robot_joint_names, ROBOT_FEATURES};
 use echo_msgs::{ControlMode, PlanPoint, RobotPlan};
@@ -33,6 +36,14 @@ pub struct ServerConfig {
     pub pair_distance_m: f64,
     /// A person without a `partner_id` is the partner when nearer than this to the robot, m.
     pub partner_range_m: f64,
+    /// Skeleton frames stamped further ahead of this host's clock than this are refused
+    /// (`from_future`) before they touch any state, ms. The service raises it to the bus's
+    /// `--max-clock-skew-ms` when that is larger.
+    pub max_future_ms: f64,
+    /// When every frame of a robot has been refused as reordered for this long since the last
+    /// accepted one (the sender's clock stepped back, or a frame stamped ahead of the stream got
+    /// in), its history restarts from the next frame (counted in `resyncs`), ms.
+    pub resync_after_ms: f64,
 }
 
 impl Default for ServerConfig {
@@ -44,6 +55,8 @@ impl Default for ServerConfig {
                 "One person approaches the other and greets them, and the other greets back.".into(),
             pair_distance_m: 2.5,
             partner_range_m: 4.0,
+            max_future_ms: DEFAULT_MAX_AHEAD_MS,
+            resync_after_ms: DEFAULT_RESYNC_AFTER_MS,
         }
     }
 }
@@ -51,7 +64,7 @@ impl Default for ServerConfig {
 /// Why an input was not used.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ServeError {
-    /// Out-of-order skeleton frame.
+    /// Out-of-order skeleton frame, or one stamped ahead of this host's clock.
     #[error(transparent)]
     History(#[from] HistoryError),
     /// The model failed on a batch.
@@ -93,6 +106,7 @@ struct Slot {
     pending: Option<u64>,
     filled: u64,
     restarts: u64,
+    resyncs: u64,
 }
 
 /// Counters across robots.
@@ -102,6 +116,9 @@ pub struct Counters {
     pub filled: u64,
     /// Histories restarted after a long gap or a new partner.
     pub restarts: u64,
+    /// Histories restarted because every frame had been refused as reordered for
+    /// `resync_after_ms`.
+    pub resyncs: u64,
     /// Batches run.
     pub batches: u64,
     /// Forecasts produced.
@@ -179,7 +196,11 @@ impl ForecastServer {
 
     /// Counters.
     pub fn counters(&self) -> Counters {
-        self.counters.clone()
+        let mut c = self.counters.clone();
+        c.filled = self.slots.values().map(|s| s.filled).sum();
+        c.restarts = self.slots.values().map(|s| s.restarts).sum();
+        c.resyncs = self.slots.values().map(|s| s.resyncs).sum();
+        c
     }
 
     /// Robots with a history.
@@ -199,9 +220,10 @@ impl ForecastServer {
             self.cfg.max_fill_frames,
             self.cfg.default_prompt.clone(),
         );
+        let (ahead, resync) = (self.cfg.max_future_ms, self.cfg.resync_after_ms);
         let (model, names) = (&self.robot_model, &self.robot_names);
         self.slots.entry(robot.to_string()).or_insert_with(|| Slot {
-            history: History::new(rate, 2 * obs, fill),
+            history: History::new(rate, 2 * obs, fill).with_guards(ahead, resync),
             pair: None,
             prompt,
             proxy: RobotProxy::new(model.clone()),
@@ -217,6 +239,7 @@ impl ForecastServer {
             pending: None,
             filled: 0,
             restarts: 0,
+            resyncs: 0,
         })
     }
 
@@ -285,16 +308,30 @@ impl ForecastServer {
         Some((partner.track_id, other))
     }
 
-    /// A skeleton frame of `robot` (validated by the bus). Returns what happened to the
-    /// history, or `None` when nobody is there to forecast.
+    /// A skeleton frame of `robot` (validated by the bus), received now. Returns what happened
+    /// to the history, or `None` when nobody is there to forecast.
     pub fn on_skeletons(
         &mut self,
         robot: &str,
         msg: &HumanSkeletons,
     ) -> Result<Option<Push>, ServeError> {
+        self.on_skeletons_at(robot, msg, echo_msgs::now_ns(), Instant::now())
+    }
+
+    /// [`on_skeletons`](Self::on_skeletons) received at `now_ns` on this host's wall clock and
+    /// `now` on its monotonic clock. A frame stamped further than `max_future_ms` ahead of
+    /// `now_ns` is refused before it touches anything (pairing, history, pending forecast).
+    pub fn on_skeletons_at(
+        &mut self,
+        robot: &str,
+        msg: &HumanSkeletons,
+        now_ns: u64,
+        now: Instant,
+    ) -> Result<Option<Push>, ServeError> {
         let obs = self.backend.config().obs;
         let choice = self.choose(msg);
         let slot = self.slot(robot);
+        slot.history.check_ahead(msg.header.stamp_ns, now_ns)?;
         let Some((pid, other)) = choice else {
             slot.history.clear();
             slot.pair = None;
@@ -319,10 +356,13 @@ impl ForecastServer {
             pair,
             robot: slot.robot_q,
         };
-        let push = slot.history.push(msg.header.stamp_ns, frame)?;
+        let push = slot
+            .history
+            .push_at(msg.header.stamp_ns, frame, now_ns, now)?;
         match push {
             Push::Filled { filled } => slot.filled += filled as u64,
             Push::Restarted { .. } => slot.restarts += 1,
+            Push::Resynced { .. } => slot.resyncs += 1,
             Push::Appended => {}
         }
         if slot.history.len() >= obs {
@@ -472,8 +512,6 @@ impl ForecastServer {
                 }),
             ));
         }
-        self.counters.filled = self.slots.values().map(|s| s.filled).sum();
-        self.counters.restarts = self.slots.values().map(|s| s.restarts).sum();
         res
     }
 }
@@ -614,6 +652,76 @@ mod tests {
         assert_eq!(s.pending(), 1);
         assert_eq!(s.run_batch().len(), 1);
         assert_eq!(s.counters().filled, 2);
+    }
+
+    #[test]
+    fn a_frame_stamped_at_the_end_of_time_does_not_stop_forecasts() {
+        let mut s = server(false);
+        let me = vec![person(1, 1.5, 0.0)];
+        for k in 0..8 {
+            s.on_skeletons("r", &frame("r", k, me.clone(), None))
+                .unwrap();
+        }
+        assert_eq!(s.run_batch().len(), 1);
+        // Another source, stamped 2^64 − 1 ns, with someone else in view.
+        let mut forged = frame("r", 8, vec![person(9, 0.8, 0.3)], Some(9));
+        forged.header.source = "forger".into();
+        forged.header.stamp_ns = u64::MAX;
+        let refused = s.on_skeletons("r", &forged);
+        // The real stream goes on and every frame is forecast.
+        for k in 8..20 {
+            s.on_skeletons("r", &frame("r", k, me.clone(), None))
+                .unwrap();
+            let out = s.run_batch();
+            assert_eq!(out.len(), 1, "frame {k}");
+            assert_eq!(
+                out[0].1.as_ref().unwrap().header.stamp_ns,
+                frame("r", k, vec![], None).header.stamp_ns
+            );
+        }
+        // The forged frame was refused before it touched anything.
+        assert_eq!(refused.unwrap_err().reason(), "from_future");
+        assert_eq!(s.pairing("r"), Some((1, Other::Robot)));
+        assert_eq!(s.counters().restarts, 0);
+    }
+
+    #[test]
+    fn a_robot_refused_as_reordered_for_too_long_resyncs() {
+        let mut s = server(false);
+        let me = vec![person(1, 1.5, 0.0)];
+        let now_ns = echo_msgs::now_ns();
+        let t0 = Instant::now();
+        let at = |k: u64| t0 + std::time::Duration::from_nanos(k * 66_666_667);
+        for k in 0..8 {
+            s.on_skeletons_at("r", &frame("r", k, me.clone(), None), now_ns, at(k))
+                .unwrap();
+        }
+        assert_eq!(s.run_batch().len(), 1);
+        // A frame stamped a minute ahead of the stream, though not of this host's clock (the
+        // sender's clock stepped, or a forger), gets in: a long gap restarts the history.
+        let mut ahead = frame("r", 8 + 900, me.clone(), None);
+        ahead.header.source = "forger".into();
+        assert!(matches!(
+            s.on_skeletons_at("r", &ahead, now_ns, at(8)),
+            Ok(Some(Push::Restarted { .. }))
+        ));
+        // The real stream is refused as reordered until no frame has been accepted for
+        // `resync_after_ms` (500 ms: 8 frames at 15 Hz); then it restarts from the real stream
+        // and forecasts resume once the model's 8 frames are held again.
+        let mut forecasts = vec![];
+        for k in 9..30 {
+            let r = s.on_skeletons_at("r", &frame("r", k, me.clone(), None), now_ns, at(k));
+            match k {
+                9..=15 => assert_eq!(r.unwrap_err().reason(), "reordered", "frame {k}"),
+                16 => assert!(matches!(r, Ok(Some(Push::Resynced { stalled_ms: 533 })))),
+                _ => assert_eq!(r, Ok(Some(Push::Appended)), "frame {k}"),
+            }
+            if !s.run_batch().is_empty() {
+                forecasts.push(k);
+            }
+        }
+        assert_eq!(forecasts, (23..30).collect::<Vec<_>>());
+        assert_eq!(s.counters().resyncs, 1);
     }
 
     #[test]

@@ -66,6 +66,17 @@ pub enum ValidationError {
         /// Sequence number received.
         got: u64,
     },
+    /// Sequence number jumped further past the last one than any sender can have published
+    /// since (a forged or corrupt number; see `SeqTracker`).
+    #[error("sequence number {got} from '{source_id}' jumps implausibly far past {last}")]
+    SeqJump {
+        /// Sender instance.
+        source_id: String,
+        /// Last accepted sequence number.
+        last: u64,
+        /// Sequence number received.
+        got: u64,
+    },
     /// Times that must increase do not.
     #[error("{field} is not strictly increasing at index {index}")]
     NotIncreasing {
@@ -88,6 +99,14 @@ pub enum ValidationError {
         /// Age at receipt.
         age_ms: f64,
         /// Accepted maximum.
+        limit_ms: f64,
+    },
+    /// Stamped further ahead of the receiver's clock than the clock skew it allows.
+    #[error("stamped {ahead_ms:.1} ms ahead of the receiver's clock (limit {limit_ms:.1} ms)")]
+    FromFuture {
+        /// How far ahead of the receiver's clock, ms.
+        ahead_ms: f64,
+        /// Accepted maximum, ms.
         limit_ms: f64,
     },
     /// Message is addressed to another frame than the receiver expects.
@@ -114,9 +133,11 @@ impl ValidationError {
             ValidationError::NotUnitQuaternion { .. } => "not_unit_quaternion",
             ValidationError::OutOfRange { .. } => "out_of_range",
             ValidationError::OutOfOrder { .. } => "out_of_order",
+            ValidationError::SeqJump { .. } => "seq_jump",
             ValidationError::NotIncreasing { .. } => "not_increasing",
             ValidationError::BadIdentifier { .. } => "bad_identifier",
             ValidationError::Stale { .. } => "stale",
+            ValidationError::FromFuture { .. } => "from_future",
             ValidationError::WrongFrame { .. } => "wrong_frame",
             ValidationError::Other(_) => "invalid",
         }

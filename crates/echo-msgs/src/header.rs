@@ -17,6 +17,8 @@ pub struct Header {
     pub seq: u64,
     /// Time the data was captured or produced, nanoseconds since the UNIX epoch (sender's clock).
     /// Receivers use their own monotonic clock for deadlines; this stamp is for latency and alignment.
+    /// Every receiver refuses a stamp further ahead of its own clock than the allowed clock skew
+    /// ([`Header::check_not_ahead`]).
     pub stamp_ns: u64,
     /// Robot this message concerns (`[A-Za-z0-9_-]+`, the same id as in the key expression).
     pub robot_id: String,
@@ -56,6 +58,19 @@ impl Header {
             });
         }
         Ok(())
+    }
+
+    /// `Ok` unless the stamp lies more than `max_ahead_ns` after `now_ns` (the receiver's wall
+    /// clock): then [`ValidationError::FromFuture`]. Any stamp in the past passes (0, a
+    /// simulation clock, a recording): how old is too old is for each receiver to judge.
+    pub fn check_not_ahead(&self, now_ns: u64, max_ahead_ns: u64) -> Result<(), ValidationError> {
+        if self.stamp_ns <= now_ns.saturating_add(max_ahead_ns) {
+            return Ok(());
+        }
+        Err(ValidationError::FromFuture {
+            ahead_ms: (self.stamp_ns - now_ns) as f64 / 1e6,
+            limit_ms: max_ahead_ns as f64 / 1e6,
+        })
     }
 
     /// Age of the stamp relative to `now_ns` in milliseconds (negative if from the future).

@@ -16,7 +16,7 @@ use echo_bus::shutdown::Shutdown;
 use echo_bus::{topics, Bus, BusArgs, Received, Stats};
 use echo_forecast::failover;
 use echo_forecast::server::Counters;
-use echo_forecast::{ForecastServer, ServerConfig};
+use echo_forecast::{ForecastServer, Push, ServerConfig};
 use echo_models::{Backend, CandleBackend, Checkpoint, ZeroVelocityBackend};
 use echo_msgs::{Forecast, HumanSkeletons, InteractionIntent, JointState};
 use echo_robot::RobotModel;
@@ -195,13 +195,15 @@ fn tagged<M: Send + 'static>(
 
 /// Open the bus, wire inputs and outputs, and run until `stop` triggers.
 pub async fn serve(args: Args, stop: Shutdown) -> Result<()> {
-    let cfg = match &args.config {
+    let mut cfg = match &args.config {
         Some(p) => serde_json::from_slice::<ServerConfig>(
             &std::fs::read(p).with_context(|| format!("reading {}", p.display()))?,
         )
         .with_context(|| format!("parsing {}", p.display()))?,
         None => ServerConfig::default(),
     };
+    // The histories never refuse a stamp the bus was told to let through.
+    cfg.max_future_ms = cfg.max_future_ms.max(args.bus.max_clock_skew_ms() as f64);
     let robot_model = match &args.urdf {
         Some(p) => {
             RobotModel::from_urdf_file(p).with_context(|| format!("loading {}", p.display()))?
@@ -331,15 +333,26 @@ pub mod edges {
     pub const FORECAST: &str = "forecast";
     /// Forecasts computed but not published: another instance is active.
     pub const STANDBY: &str = "forecast_standby";
+    /// Robot histories dropped and restarted because every frame had been refused as reordered
+    /// for `resync_after_ms` (counted under `dropped`).
+    pub const RESYNC: &str = "humans_resync";
 }
 
 fn handle(server: &mut ForecastServer, stats: &Stats, input: Input) {
     match input {
-        Input::Skeletons(r, m) => {
-            if let Err(e) = server.on_skeletons(&r, &m.msg) {
-                stats.rejected(edges::HUMANS, e.reason(), &format!("{r}: {e}"));
+        Input::Skeletons(r, m) => match server.on_skeletons(&r, &m.msg) {
+            Ok(Some(Push::Resynced { stalled_ms })) => {
+                stats.dropped(edges::RESYNC, 1);
+                tracing::warn!(
+                    robot = %r,
+                    stalled_ms,
+                    "every skeleton frame refused as reordered since the last accepted one: \
+                     history restarted"
+                );
             }
-        }
+            Ok(_) => {}
+            Err(e) => stats.rejected(edges::HUMANS, e.reason(), &format!("{r}: {e}")),
+        },
         Input::JointState(r, m) => server.on_joint_state(&r, &m.msg),
         Input::Prompt(r, m) => {
             if let Err(e) = server.on_prompt(&r, &m.msg) {

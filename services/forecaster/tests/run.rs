@@ -12,21 +12,26 @@ use forecaster::{run, Input, Output};
 use futures::StreamExt;
 
 #[derive(Default)]
-struct Collect(Vec<(String, Forecast)>);
+struct Collect(Vec<(String, Forecast)>, Vec<Instant>);
 
 impl Output for Collect {
     async fn forecast(&mut self, robot: &str, msg: Forecast) -> anyhow::Result<()> {
         self.0.push((robot.to_string(), msg));
+        self.1.push(Instant::now());
         Ok(())
     }
 }
 
 fn frame(robot: &str, k: u64) -> Input {
+    frame_from(robot, "test", k)
+}
+
+fn frame_from(robot: &str, source: &str, k: u64) -> Input {
     let joints: Vec<[f64; 3]> = (0..22)
         .map(|j| [1.5 + 0.01 * k as f64, 0.0, 0.05 * j as f64])
         .collect();
-    let mut header = Header::new(robot, "test", "base_footprint");
-    header.stamp_ns = 1_000_000_000 + k * 66_666_667;
+    let mut header = Header::new(robot, source, "base_footprint");
+    header.stamp_ns = stamp(k);
     let msg = HumanSkeletons {
         header,
         rate_hz: 15.0,
@@ -40,6 +45,10 @@ fn frame(robot: &str, k: u64) -> Input {
             at: Instant::now(),
         },
     )
+}
+
+fn stamp(k: u64) -> u64 {
+    1_000_000_000 + k * 66_666_667
 }
 
 fn server() -> ForecastServer {
@@ -102,4 +111,82 @@ async fn a_lone_robot_is_forecast_at_once() {
     .unwrap();
     assert_eq!(c.batches, 2);
     assert_eq!(out.0.len(), 2);
+}
+
+/// Frames of robot "a" at 15 Hz in real time, with `forged` sent right after frame 9; returns
+/// when the forged frame was handed over, the forecasts with their publish times, and the counters.
+async fn paced_with_a_forged_frame(forged: Input, frames: u64) -> (Instant, Collect, Stats) {
+    let mut inputs: Vec<Input> = (0..10).map(|k| frame("a", k)).collect();
+    inputs.push(forged);
+    inputs.extend((10..frames).map(|k| frame("a", k)));
+    let sent = std::sync::Arc::new(std::sync::Mutex::new(None));
+    let mark = sent.clone();
+    let paced = futures::stream::iter(inputs).then(move |input| {
+        let mark = mark.clone();
+        async move {
+            let forged =
+                matches!(&input, Input::Skeletons(_, m) if m.msg.header.source == "forger");
+            if forged {
+                *mark.lock().unwrap() = Some(Instant::now());
+            } else {
+                tokio::time::sleep(Duration::from_nanos(66_666_667)).await;
+            }
+            input
+        }
+    });
+    let stats = Stats::new("forecaster");
+    let mut out = Collect::default();
+    run(
+        paced.boxed(),
+        &mut out,
+        server(),
+        &stats,
+        Duration::from_millis(3),
+        1,
+    )
+    .await
+    .unwrap();
+    let at = sent.lock().unwrap().expect("the forged frame was sent");
+    (at, out, stats)
+}
+
+/// Seconds from `at` to the first forecast of a frame after frame 9.
+fn resumed_after(at: Instant, out: &Collect) -> Option<f64> {
+    out.0
+        .iter()
+        .zip(&out.1)
+        .find(|((_, f), _)| f.header.stamp_ns > stamp(9))
+        .map(|(_, t)| t.duration_since(at).as_secs_f64())
+}
+
+#[tokio::test]
+async fn a_frame_stamped_at_the_end_of_time_does_not_stop_forecasts() {
+    let mut forged = frame_from("a", "forger", 10);
+    if let Input::Skeletons(_, m) = &mut forged {
+        m.msg.header.stamp_ns = u64::MAX;
+    }
+    let (at, out, stats) = paced_with_a_forged_frame(forged, 20).await;
+    let after = resumed_after(at, &out).expect("forecasts after the forged frame");
+    assert!(
+        after < 1.0,
+        "first forecast {after:.3} s after the forged frame"
+    );
+    // Frames 7 … 19 are each forecast: none was lost to the forged one.
+    assert_eq!(out.0.len(), 13);
+    assert_eq!(stats.rejected_count("humans", "from_future"), 1);
+    assert_eq!(stats.rejected_count("humans", "reordered"), 0);
+}
+
+#[tokio::test]
+async fn a_frame_stamped_ahead_of_the_stream_pauses_forecasts_only_briefly() {
+    // A minute ahead of the stream but not of this host's clock: it gets in, and the real frames
+    // are refused as reordered until the history resyncs (500 ms), then refills (8 frames).
+    let (at, out, stats) = paced_with_a_forged_frame(frame_from("a", "forger", 10 + 900), 36).await;
+    let after = resumed_after(at, &out).expect("forecasts resume");
+    assert!(
+        after < 1.5,
+        "first forecast {after:.3} s after the forged frame"
+    );
+    assert_eq!(stats.dropped_count("humans_resync"), 1);
+    assert!(stats.rejected_count("humans", "reordered") >= 7);
 }
