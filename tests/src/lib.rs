@@ -2,6 +2,7 @@
 //! peer session on free loopback ports (explicit endpoints, no multicast), waits for their
 //! liveliness tokens, and always stops them (SIGTERM, then SIGKILL) when dropped.
 
+pub mod attack;
 pub mod netns;
 
 use std::path::{Path, PathBuf};
