@@ -1,12 +1,13 @@
 //! Mutual TLS and access control through `echoctl router` with deploy/zenoh/router-secure.json5:
 //! a host whose certificate is not from Echo's CA cannot connect, nor can a plain-TCP one; a host
-//! with a valid certificate but the wrong identity cannot publish robot commands, and the router
-//! logs the attempt; the safety identity can.
+//! with a valid certificate but the wrong identity cannot publish robot commands, nor another
+//! service's status or liveliness token, and the router logs the attempt under the identity's
+//! name; the identities that own those keys can.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use echo_bus::testkit::free_port;
@@ -73,6 +74,84 @@ async fn counter(
     Ok((n, sub))
 }
 
+/// Record `(key, payload)` of every sample arriving on `key` at `bus` (the subscriber lives as
+/// long as the guard).
+type Received = Arc<Mutex<Vec<(String, String)>>>;
+async fn recorder(
+    bus: &Bus,
+    key: &str,
+) -> anyhow::Result<(Received, zenoh::pubsub::Subscriber<()>)> {
+    let got: Received = Arc::default();
+    let g = got.clone();
+    let sub = bus
+        .session()
+        .declare_subscriber(key.to_string())
+        .callback(move |s| {
+            let payload = String::from_utf8_lossy(&s.payload().to_bytes()).into_owned();
+            g.lock()
+                .unwrap()
+                .push((s.key_expr().as_str().to_string(), payload));
+        })
+        .await
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok((got, sub))
+}
+
+fn openssl_missing() -> bool {
+    let missing = Command::new("openssl").arg("version").output().is_err();
+    if missing {
+        eprintln!("skipping: openssl is not installed");
+    }
+    missing
+}
+
+/// Start `echoctl router` with the secure configuration and the certificates in `certs`; returns
+/// its TLS port.
+fn secure_router(h: &mut Harness, certs: &Path) -> anyhow::Result<u16> {
+    let port = free_port();
+    let cfg = repo().join("deploy/zenoh/router-secure.json5");
+    h.spawn_raw(
+        "router",
+        "echoctl",
+        &[
+            "router",
+            "--zenoh-config",
+            cfg.to_str().unwrap(),
+            "--listen",
+            &format!("tls/127.0.0.1:{port}"),
+            "--tls-dir",
+            certs.to_str().unwrap(),
+        ],
+    )?;
+    Ok(port)
+}
+
+/// Whether the router's log has an access denial naming `identity` and containing `what`.
+fn denial_logged(log: &str, identity: &str, what: &str) -> bool {
+    log.lines()
+        .any(|l| l.contains(&format!("access denied: {identity} (zid ")) && l.contains(what))
+}
+
+/// Forge statuses as the forecaster and the operator: the safety service's through declared
+/// publishers (`pubs`, as the services publish theirs), others' and the safety filter's by puts.
+async fn forge(
+    robot: &RobotId,
+    forecaster: &Bus,
+    operator: &Bus,
+    pubs: &[(zenoh::pubsub::Publisher<'_>, &str)],
+) -> anyhow::Result<()> {
+    for (p, tag) in pubs {
+        p.put(*tag).await.map_err(|e| anyhow::anyhow!("{e}"))?;
+    }
+    let (f, o) = ("forged by forecaster", "forged by operator");
+    put(forecaster, &keys::service_status(robot, "retargeter"), f).await?;
+    put(forecaster, &keys::service_status_all(robot), f).await?;
+    put(operator, &keys::service_status(robot, "forecaster"), o).await?;
+    put(forecaster, &keys::safety_status(robot), f).await?;
+    put(operator, &keys::safety_status(robot), o).await?;
+    Ok(())
+}
+
 /// Open a client, retrying while the router starts.
 async fn connect(args: &BusArgs, service: &str) -> anyhow::Result<Bus> {
     let mut last = None;
@@ -88,8 +167,7 @@ async fn connect(args: &BusArgs, service: &str) -> anyhow::Result<Bus> {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn only_certified_identities_connect_and_only_safety_commands() -> anyhow::Result<()> {
-    if Command::new("openssl").arg("version").output().is_err() {
-        eprintln!("skipping: openssl is not installed");
+    if openssl_missing() {
         return Ok(());
     }
     let scratch = tempfile::tempdir()?;
@@ -109,21 +187,7 @@ async fn only_certified_identities_connect_and_only_safety_commands() -> anyhow:
     make_certs(&rogue, &["safety"])?;
 
     let mut h = Harness::new(ROBOT, 0)?;
-    let port = free_port();
-    let cfg = repo().join("deploy/zenoh/router-secure.json5");
-    h.spawn_raw(
-        "router",
-        "echoctl",
-        &[
-            "router",
-            "--zenoh-config",
-            cfg.to_str().unwrap(),
-            "--listen",
-            &format!("tls/127.0.0.1:{port}"),
-            "--tls-dir",
-            good.to_str().unwrap(),
-        ],
-    )?;
+    let port = secure_router(&mut h, &good)?;
 
     let robot_if = connect(&client(port, &good, "robot-interface", true), "mock-robot").await?;
     let robot = RobotId::new(ROBOT)?;
@@ -194,11 +258,188 @@ async fn only_certified_identities_connect_and_only_safety_commands() -> anyhow:
 
     let log = std::fs::read_to_string(h.log_dir().join("router.log"))?;
     assert!(
-        log.lines().any(|l| l.contains("access denied")
-            && l.contains("CertCommonName(forecaster)")
-            && l.contains("Put (ingress) on echo/sys-sec/command")),
+        denial_logged(&log, "forecaster", "Put (ingress) on echo/sys-sec/command"),
         "router log:\n{log}"
     );
+    assert!(h.is_running("router"));
+    Ok(())
+}
+
+/// Every identity publishes its own service status and holds its own liveliness token; none can
+/// forge another service's: not the forecaster (on the edge box) nor an operator's laptop.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn identities_publish_only_their_own_status_and_liveliness() -> anyhow::Result<()> {
+    if openssl_missing() {
+        return Ok(());
+    }
+    let scratch = tempfile::tempdir()?;
+    let certs = scratch.path().join("certs");
+    make_certs(
+        &certs,
+        &[
+            "router",
+            "safety",
+            "forecaster",
+            "operator",
+            "robot-interface",
+        ],
+    )?;
+    let mut h = Harness::new(ROBOT, 0)?;
+    let port = secure_router(&mut h, &certs)?;
+    let robot = RobotId::new(ROBOT)?;
+
+    // The observer (any identity may subscribe and watch liveliness): the robot interface.
+    let observer = connect(&client(port, &certs, "robot-interface", true), "mock-robot").await?;
+    let (statuses, _ssub) = recorder(&observer, &keys::service_status_all(&robot)).await?;
+    let (filter_status, _fsub) = recorder(&observer, &keys::safety_status(&robot)).await?;
+    let alive = observer.watch_alive(&keys::alive_all(&robot)).await?;
+
+    let forecaster = connect(&client(port, &certs, "forecaster", true), "forecaster").await?;
+    let operator = connect(&client(port, &certs, "operator", true), "operator").await?;
+
+    // Forged liveliness tokens first: a monitor would take them for the safety service (or
+    // another one) running.
+    let forged_alive: [(&Bus, &[&str]); 2] = [
+        (&forecaster, &["safety", "retargeter"]),
+        (&operator, &["safety", "perception-bridge", "operator"]),
+    ];
+    let mut forged_tokens = vec![];
+    for (bus, services) in forged_alive {
+        for s in services {
+            forged_tokens.push(
+                bus.session()
+                    .liveliness()
+                    .declare_token(keys::alive(&robot, s))
+                    .await
+                    .map_err(|e| anyhow::anyhow!("{e}"))?,
+            );
+        }
+    }
+    // The forecaster's own tokens (service and failover instance) do appear.
+    let mut own_tokens = vec![];
+    for s in ["forecaster", "forecaster-r0"] {
+        own_tokens.push(
+            forecaster
+                .session()
+                .liveliness()
+                .declare_token(keys::alive(&robot, s))
+                .await
+                .map_err(|e| anyhow::anyhow!("{e}"))?,
+        );
+    }
+    let missing = alive
+        .wait_for(
+            ROBOT,
+            &["forecaster", "forecaster-r0"],
+            Duration::from_secs(10),
+        )
+        .await;
+    assert!(missing.is_empty(), "own tokens not seen: {missing:?}");
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let live_now = observer
+        .alive_now(&keys::alive_all(&robot), Duration::from_secs(2))
+        .await?;
+    for forged in ["safety", "retargeter", "perception-bridge", "operator"] {
+        assert!(
+            !alive.is_alive(ROBOT, forged),
+            "forged token alive/{forged} seen: {:?}",
+            alive.snapshot()
+        );
+        assert!(
+            !live_now.iter().any(|(_, s)| s == forged),
+            "forged token alive/{forged} answered a liveliness query: {live_now:?}"
+        );
+    }
+
+    // Forged statuses, through declared publishers as the services publish (and plain puts).
+    let status_of = |s: &str| keys::service_status(&robot, s);
+    let mut pubs = vec![];
+    for (bus, tag) in [
+        (&forecaster, "forged by forecaster"),
+        (&operator, "forged by operator"),
+    ] {
+        let p = bus
+            .session()
+            .declare_publisher(status_of("safety"))
+            .await
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        pubs.push((p, tag));
+    }
+    forge(&robot, &forecaster, &operator, &pubs).await?;
+
+    // The owners' own statuses and tokens are delivered.
+    let safety = connect(&client(port, &certs, "safety", true), "safety").await?;
+    let _safety_token = safety.declare_alive().await?;
+    let own = |got: &Received, key: &str, payload: &str| {
+        got.lock()
+            .unwrap()
+            .iter()
+            .any(|(k, p)| k == key && p == payload)
+    };
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(10);
+    while !(own(&statuses, &status_of("safety"), "from safety")
+        && own(&statuses, &status_of("forecaster"), "from forecaster")
+        && own(&filter_status, &keys::safety_status(&robot), "from safety"))
+        && tokio::time::Instant::now() < deadline
+    {
+        put(&safety, &status_of("safety"), "from safety").await?;
+        put(&safety, &keys::safety_status(&robot), "from safety").await?;
+        put(&forecaster, &status_of("forecaster"), "from forecaster").await?;
+        forge(&robot, &forecaster, &operator, &pubs).await?;
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    assert!(
+        own(&statuses, &status_of("safety"), "from safety"),
+        "the safety service's status did not arrive: {:?}",
+        statuses.lock().unwrap()
+    );
+    assert!(
+        own(&statuses, &status_of("forecaster"), "from forecaster"),
+        "the forecaster's status did not arrive: {:?}",
+        statuses.lock().unwrap()
+    );
+    assert!(
+        own(&filter_status, &keys::safety_status(&robot), "from safety"),
+        "the safety filter's status did not arrive"
+    );
+    let missing = alive
+        .wait_for(ROBOT, &["safety"], Duration::from_secs(10))
+        .await;
+    assert!(missing.is_empty(), "the safety service's token not seen");
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    for got in [&statuses, &filter_status] {
+        let got = got.lock().unwrap();
+        let forged: Vec<_> = got
+            .iter()
+            .filter(|(_, p)| p.starts_with("forged"))
+            .collect();
+        assert!(forged.is_empty(), "forged statuses delivered: {forged:?}");
+    }
+
+    let log = std::fs::read_to_string(h.log_dir().join("router.log"))?;
+    for (identity, what) in [
+        ("forecaster", "Put (ingress) on echo/sys-sec/status/safety"),
+        ("operator", "Put (ingress) on echo/sys-sec/status/safety"),
+        (
+            "forecaster",
+            "Put (ingress) on echo/sys-sec/status/retargeter",
+        ),
+        ("operator", "Put (ingress) on echo/sys-sec/safety/status"),
+        (
+            "forecaster",
+            "Liveliness Token (ingress) on echo/sys-sec/alive/safety",
+        ),
+        (
+            "operator",
+            "Liveliness Token (ingress) on echo/sys-sec/alive/safety",
+        ),
+    ] {
+        assert!(
+            denial_logged(&log, identity, what),
+            "no denial of {identity}: {what} in the router log:\n{log}"
+        );
+    }
+    drop((forged_tokens, own_tokens));
     assert!(h.is_running("router"));
     Ok(())
 }

@@ -106,7 +106,7 @@ async fn main() -> Result<()> {
             cmd::record::replay(a).await
         }
         Command::Router(a) => {
-            let _denied = telemetry::init_with_access_log();
+            let _denied = cmd::router::init_logging();
             cmd::router::run(a).await
         }
         Command::Bench(a) => {
