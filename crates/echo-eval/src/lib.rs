@@ -8,4 +8,6 @@ pub mod render;
 pub mod window;
 
 pub use harness::{evaluate, Report};
-pub use window::{windows, Predictor, Window, HORIZONS_S, OBS_FRAMES, PRED_FRAMES, RATE_HZ};
+pub use window::{
+    windows, DampedVelocity, Predictor, Window, HORIZONS_S, OBS_FRAMES, PRED_FRAMES, RATE_HZ,
+};

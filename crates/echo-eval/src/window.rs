@@ -121,3 +121,72 @@ impl Predictor for ConstantVelocity {
             .collect()
     }
 }
+
+/// Extrapolates every joint with its last observed velocity, decaying with time constant
+/// `tau_s`: frame k moves by `v·Σ_{i=1..k} r^i`, `r = exp(−1/(τ·15 Hz))` — between zero velocity
+/// (τ → 0) and constant velocity (τ → ∞). Real people carry momentum but do not keep it for
+/// long; this is also the prior a forecaster with `velocity_prior_s` adds its output to.
+#[derive(Debug, Clone, Copy)]
+pub struct DampedVelocity {
+    /// Time constant of the decay, s.
+    pub tau_s: f64,
+}
+
+impl Predictor for DampedVelocity {
+    fn name(&self) -> String {
+        format!("damped-velocity-{:.2}s", self.tau_s)
+    }
+
+    fn predict(&mut self, batch: &[&Window]) -> Vec<Vec<Frame>> {
+        let r = (-1.0 / (self.tau_s.max(1e-6) * RATE_HZ)).exp();
+        let gains: Vec<f64> = (1..=PRED_FRAMES)
+            .scan(0.0, |acc, k| {
+                *acc += r.powi(k as i32);
+                Some(*acc)
+            })
+            .collect();
+        batch
+            .iter()
+            .map(|w| {
+                let last = &w.obs[w.obs.len() - 1];
+                let prev = &w.obs[w.obs.len() - 2];
+                gains
+                    .iter()
+                    .map(|g| {
+                        last.iter()
+                            .zip(prev)
+                            .map(|(l, p)| std::array::from_fn(|j| l[j] + (l[j] - p[j]) * *g))
+                            .collect()
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod damped_tests {
+    use super::*;
+
+    #[test]
+    fn damped_velocity_lies_between_zero_and_constant_velocity() {
+        let f = |x: f64| vec![[Vector3::new(x, 0.0, 1.0); 22]; 2];
+        let w = Window {
+            kind: echo_msgs::Interaction::Idle,
+            texts: vec![],
+            obs: (0..OBS_FRAMES).map(|k| f(k as f64 * 0.1)).collect(),
+            future: vec![f(0.0); PRED_FRAMES],
+            origin: (0, 0),
+        };
+        let cv = ConstantVelocity.predict(&[&w]);
+        let dv = DampedVelocity { tau_s: 0.5 }.predict(&[&w]);
+        let last = 0.1 * (OBS_FRAMES - 1) as f64;
+        for k in 0..PRED_FRAMES {
+            let (c, d) = (cv[0][k][0][0].x, dv[0][k][0][0].x);
+            assert!(d > last && d < c + 1e-12, "frame {k}: {d} vs {c}");
+        }
+        // The first step is nearly the constant-velocity one; the total stays bounded by v·τ·15.
+        assert!((dv[0][0][0][0].x - last - 0.1 * (-1.0f64 / 7.5).exp()).abs() < 1e-9);
+        assert!(dv[0][PRED_FRAMES - 1][0][0].x - last < 0.1 * 7.5);
+    }
+}

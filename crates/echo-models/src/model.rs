@@ -53,6 +53,12 @@ pub struct ForecasterConfig {
     /// single-agent model) and training learns the partner's influence as a correction
     /// (false: random like every other layer — checkpoints from before this setting).
     pub social_identity_init: bool,
+    /// With `displacement`: the decoded displacement is added to a damped constant-velocity
+    /// extrapolation of the last two observed frames instead of the last frame alone:
+    /// `base_k = x_T + (x_T − x_{T−1})·Σ_{i=1..k} r^i`, `r = exp(−1/(τ·15 Hz))`, τ this many
+    /// seconds (0: the last frame, as in the paper). Real people carry momentum; the prior lets
+    /// the network learn corrections to it instead of velocity itself.
+    pub velocity_prior_s: f64,
 }
 
 impl Default for ForecasterConfig {
@@ -71,11 +77,27 @@ impl Default for ForecasterConfig {
             interleaved: true,
             agent_features: [FEATURES, FEATURES],
             social_identity_init: false,
+            velocity_prior_s: 0.0,
         }
     }
 }
 
 impl ForecasterConfig {
+    /// Gains of the velocity prior per predicted frame: `Σ_{i=1..k} r^i` (all zero without it).
+    pub fn prior_gains(&self) -> Vec<f32> {
+        if !(self.velocity_prior_s > 0.0) || !self.displacement {
+            return vec![0.0; self.pred];
+        }
+        let r = (-1.0 / (self.velocity_prior_s * 15.0)).exp();
+        let mut acc = 0.0;
+        (1..=self.pred)
+            .map(|k| {
+                acc += r.powi(k as i32);
+                acc as f32
+            })
+            .collect()
+    }
+
     /// Frames in the model (observed + predicted).
     pub fn frames(&self) -> usize {
         self.obs + self.pred
@@ -399,7 +421,17 @@ impl Forecaster {
                 h = tm.forward(&h)?;
             }
             agents.push(h);
-            lasts.push(last);
+            // The base the displacement is added to: the last frame, plus the damped velocity.
+            let base = if self.cfg.velocity_prior_s > 0.0 {
+                let prev = x.narrow(1, n_obs - 2, 1)?;
+                let v = (&last - &prev)?; // (b, 1, f)
+                let g =
+                    Tensor::from_vec(self.cfg.prior_gains(), (1, self.cfg.pred, 1), x.device())?;
+                last.broadcast_add(&v.broadcast_mul(&g)?)?
+            } else {
+                last
+            };
+            lasts.push(base);
         }
         let (mut ha, mut hb) = (agents[0].clone(), agents[1].clone());
         if self.cfg.interleaved {
@@ -525,6 +557,44 @@ pub fn bone_loss(pred: &Tensor, truth: &Tensor) -> Result<Tensor> {
 mod tests {
     use super::*;
     use candle_nn::VarMap;
+
+    #[test]
+    fn untrained_with_the_velocity_prior_the_forecast_is_damped_velocity() {
+        let dev = Device::Cpu;
+        let vm = VarMap::new();
+        let cfg = ForecasterConfig {
+            velocity_prior_s: 0.4,
+            ..Default::default()
+        };
+        let m =
+            Forecaster::new(cfg.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev)).unwrap();
+        let obs = Tensor::randn(0f32, 1.0, (2, 2, cfg.obs, FEATURES), &dev).unwrap();
+        let y = m.forward(&obs, None).unwrap();
+        let last = obs.narrow(2, cfg.obs - 1, 1).unwrap();
+        let v = (&last - obs.narrow(2, cfg.obs - 2, 1).unwrap()).unwrap();
+        let g = cfg.prior_gains();
+        assert!(g.windows(2).all(|w| w[1] > w[0]) && g[0] > 0.8 && g[0] < 1.0);
+        let want = last
+            .broadcast_add(
+                &v.broadcast_mul(&Tensor::from_vec(g, (1, 1, cfg.pred, 1), &dev).unwrap())
+                    .unwrap(),
+            )
+            .unwrap();
+        let err: f32 = (y - want)
+            .unwrap()
+            .abs()
+            .unwrap()
+            .max_all()
+            .unwrap()
+            .to_scalar()
+            .unwrap();
+        assert!(err < 1e-5, "{err}");
+        // Without it: the gains are zero.
+        assert!(ForecasterConfig::default()
+            .prior_gains()
+            .iter()
+            .all(|x| *x == 0.0));
+    }
 
     #[test]
     fn shapes_and_the_displacement_baseline() {

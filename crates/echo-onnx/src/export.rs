@@ -143,6 +143,11 @@ impl Graph {
         self.constant(hint, data_type::INT64, vec![data.len() as i64], raw)
     }
 
+    fn constant_f32(&mut self, hint: &str, dims: &[i64], data: &[f32]) -> String {
+        let raw = data.iter().flat_map(|x| x.to_le_bytes()).collect();
+        self.constant(hint, data_type::FLOAT, dims.to_vec(), raw)
+    }
+
     fn scalar(&mut self, hint: &str, v: f32) -> String {
         self.constant(hint, data_type::FLOAT, vec![], v.to_le_bytes().to_vec())
     }
@@ -360,7 +365,18 @@ pub fn build(weights: HashMap<String, Tensor>, cfg: &ForecasterConfig) -> Result
             h = g.temp_mlp(&h, &format!("temp.{i}"))?;
         }
         agents.push(h);
-        lasts.push(last);
+        // The base of the displacement: the last frame, plus the damped velocity prior.
+        let base = if cfg.velocity_prior_s > 0.0 && cfg.displacement {
+            let prev = g.slice(&x, 1, n_obs - 2, n_obs - 1);
+            let v = g.op("Sub", &[&last, &prev], vec![]);
+            let gains = cfg.prior_gains();
+            let gk = g.constant_f32("prior_gains", &[1, pred, 1], &gains);
+            let dv = g.op("Mul", &[&v, &gk], vec![]);
+            g.op("Add", &[&last, &dv], vec![])
+        } else {
+            last
+        };
+        lasts.push(base);
     }
     let (mut ha, mut hb) = (agents[0].clone(), agents[1].clone());
     if cfg.interleaved {

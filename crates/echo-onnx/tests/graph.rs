@@ -152,6 +152,10 @@ fn every_variant_graph_is_well_formed() {
             ..base.clone()
         },
         ForecasterConfig {
+            velocity_prior_s: 0.4,
+            ..base.clone()
+        },
+        ForecasterConfig {
             self_layers: 2,
             dct: true,
             text_dim: 0,

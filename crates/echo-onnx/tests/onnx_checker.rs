@@ -106,6 +106,10 @@ fn onnx_checker_accepts_every_variant() {
             ..base.clone()
         },
         ForecasterConfig {
+            velocity_prior_s: 0.4,
+            ..base.clone()
+        },
+        ForecasterConfig {
             displacement: false,
             temp_mlp: 0,
             ..base.clone()

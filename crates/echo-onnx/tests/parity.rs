@@ -71,6 +71,10 @@ fn every_variant_matches_candle() {
             rounds: 0,
             ..base.clone()
         },
+        ForecasterConfig {
+            velocity_prior_s: 0.4,
+            ..base.clone()
+        },
     ];
     let scratch = tempfile::tempdir().unwrap();
     let dir = scratch.path().to_path_buf();
