@@ -85,7 +85,7 @@ impl Default for ForecasterConfig {
 impl ForecasterConfig {
     /// Gains of the velocity prior per predicted frame: `Σ_{i=1..k} r^i` (all zero without it).
     pub fn prior_gains(&self) -> Vec<f32> {
-        if !(self.velocity_prior_s > 0.0) || !self.displacement {
+        if self.velocity_prior_s.is_nan() || self.velocity_prior_s <= 0.0 || !self.displacement {
             return vec![0.0; self.pred];
         }
         let r = (-1.0 / (self.velocity_prior_s * 15.0)).exp();
