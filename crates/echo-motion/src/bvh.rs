@@ -241,29 +241,102 @@ impl Bvh {
         Self::parse(&text, &path.display().to_string())
     }
 
+    /// Index of each joint's first channel in a frame row.
+    pub fn channel_starts(&self) -> Vec<usize> {
+        self.joints
+            .iter()
+            .scan(0, |k, j| {
+                let s = *k;
+                *k += j.channels.len();
+                Some(s)
+            })
+            .collect()
+    }
+
+    /// Local rotation and translation of joint `j` given that joint's channel values (in
+    /// channel order): rotations compose in channel order; a joint without position channels
+    /// keeps its offset.
+    pub fn local(&self, j: usize, values: &[f64]) -> (Rotation3<f64>, Vector3<f64>) {
+        let joint = &self.joints[j];
+        let mut t = joint.offset;
+        let mut r = Rotation3::identity();
+        for (c, v) in joint.channels.iter().zip(values) {
+            match c {
+                Channel::Pos(a) => t[*a] = *v,
+                Channel::Rot(a) => {
+                    let ax = [Vector3::x_axis(), Vector3::y_axis(), Vector3::z_axis()][*a];
+                    r *= Rotation3::from_axis_angle(&ax, v.to_radians());
+                }
+            }
+        }
+        (r, t)
+    }
+
+    /// BVH text of this file (End Sites, which are not kept, are written as zero offsets).
+    pub fn to_text(&self) -> String {
+        let name = |c: &Channel| match c {
+            Channel::Pos(a) => format!("{}position", ["X", "Y", "Z"][*a]),
+            Channel::Rot(a) => format!("{}rotation", ["X", "Y", "Z"][*a]),
+        };
+        fn joint(
+            s: &mut String,
+            b: &Bvh,
+            j: usize,
+            depth: usize,
+            name: &dyn Fn(&Channel) -> String,
+        ) {
+            let pad = "  ".repeat(depth);
+            let jt = &b.joints[j];
+            let kw = if jt.parent.is_none() { "ROOT" } else { "JOINT" };
+            let o = jt.offset;
+            s.push_str(&format!(
+                "{pad}{kw} {}\n{pad}{{\n{pad}  OFFSET {} {} {}\n",
+                jt.name, o.x, o.y, o.z
+            ));
+            if !jt.channels.is_empty() {
+                let names: Vec<String> = jt.channels.iter().map(name).collect();
+                s.push_str(&format!(
+                    "{pad}  CHANNELS {} {}\n",
+                    names.len(),
+                    names.join(" ")
+                ));
+            }
+            let kids: Vec<usize> = (0..b.joints.len())
+                .filter(|c| b.joints[*c].parent == Some(j))
+                .collect();
+            if kids.is_empty() {
+                s.push_str(&format!(
+                    "{pad}  End Site\n{pad}  {{\n{pad}    OFFSET 0 0 0\n{pad}  }}\n"
+                ));
+            }
+            for c in kids {
+                joint(s, b, c, depth + 1, name);
+            }
+            s.push_str(&format!("{pad}}}\n"));
+        }
+        let mut s = String::from("HIERARCHY\n");
+        joint(&mut s, self, 0, 0, &name);
+        s.push_str(&format!(
+            "MOTION\nFrames: {}\nFrame Time: {}\n",
+            self.frames.len(),
+            self.frame_time
+        ));
+        for row in &self.frames {
+            let vals: Vec<String> = row.iter().map(|v| v.to_string()).collect();
+            s.push_str(&vals.join(" "));
+            s.push('\n');
+        }
+        s
+    }
+
     /// World positions of every joint at frame `f` (file units, Y-up).
     pub fn positions(&self, f: usize) -> Vec<Vector3<f64>> {
         let row = &self.frames[f];
         let mut k = 0;
         let mut global: Vec<(Rotation3<f64>, Vector3<f64>)> = Vec::with_capacity(self.joints.len());
-        for j in &self.joints {
-            let mut t = j.offset;
-            let mut r = Rotation3::identity();
-            for c in &j.channels {
-                let v = row[k];
-                k += 1;
-                match c {
-                    Channel::Pos(a) => t[*a] = v,
-                    Channel::Rot(a) => {
-                        let ax = [Vector3::x_axis(), Vector3::y_axis(), Vector3::z_axis()][*a];
-                        r *= Rotation3::from_axis_angle(&ax, v.to_radians());
-                    }
-                }
-            }
-            // Joints without position channels keep their offset.
-            if !j.channels.iter().any(|c| matches!(c, Channel::Pos(_))) {
-                t = j.offset;
-            }
+        for (i, j) in self.joints.iter().enumerate() {
+            let (r, t) = self.local(i, &row[k..k + j.channels.len()]);
+            k += j.channels.len();
             let g = match j.parent {
                 Some(p) => (global[p].0 * r, global[p].1 + global[p].0 * t),
                 None => (r, t),
@@ -318,16 +391,19 @@ pub fn echo_map() -> JointMap {
     JOINT_NAMES.iter().map(|n| (*n, n.to_string())).collect()
 }
 
-/// The 22 joints per frame (z-up, metres) at `fps`, from a BVH via `map`; `scale` converts file
-/// units to metres (0.01 for centimetres; CMU: 0.0564). Linear resampling in time.
-pub fn to_smpl(
-    bvh: &Bvh,
-    map: &JointMap,
-    scale: f64,
-    fps: f64,
-    file: &str,
-) -> Result<Vec<[Vector3<f64>; NUM_JOINTS]>, BvhError> {
-    let idx: Vec<usize> = JOINT_NAMES
+/// CMU's unit convention: file units × 0.0564 ≈ metres ("inches × 0.45").
+pub const CMU_SCALE: f64 = 0.0564;
+
+/// The file-unit scale a joint map's source is known to use: [`CMU_SCALE`] for [`cmu_map`];
+/// `None` for any other map (its files may be in any unit).
+pub fn default_scale(map: &JointMap) -> Option<f64> {
+    (*map == cmu_map()).then_some(CMU_SCALE)
+}
+
+/// Index into `bvh.joints` of each of the 22 SMPL joints through `map`; an error names the
+/// missing joint and lists the file's joints.
+pub fn joint_indices(bvh: &Bvh, map: &JointMap, file: &str) -> Result<Vec<usize>, BvhError> {
+    JOINT_NAMES
         .iter()
         .map(|n| {
             let want = map.get(n).ok_or_else(|| BvhError {
@@ -351,7 +427,19 @@ pub fn to_smpl(
                     ),
                 })
         })
-        .collect::<Result<_, _>>()?;
+        .collect()
+}
+
+/// The 22 joints per frame (z-up, metres) at `fps`, from a BVH via `map`; `scale` converts file
+/// units to metres (0.01 for centimetres; CMU: [`CMU_SCALE`]). Linear resampling in time.
+pub fn to_smpl(
+    bvh: &Bvh,
+    map: &JointMap,
+    scale: f64,
+    fps: f64,
+    file: &str,
+) -> Result<Vec<[Vector3<f64>; NUM_JOINTS]>, BvhError> {
+    let idx = joint_indices(bvh, map, file)?;
     if bvh.frames.is_empty() {
         return Err(BvhError {
             file: file.into(),
@@ -510,6 +598,25 @@ mod tests {
             .map(|i| (back[i][20] - frames[4 * i][20]).norm())
             .fold(0.0, f64::max);
         assert!(err < 1e-3, "{err}");
+    }
+
+    #[test]
+    fn to_text_round_trips() {
+        let c = generate(&Split::Test.clip(2));
+        let frames: Vec<_> = (0..c.frames.len()).map(|f| c.joints(f, 1)).collect();
+        let bvh = Bvh::parse(&write(&frames, FPS), "<generated>").unwrap();
+        let again = Bvh::parse(&bvh.to_text(), "<again>").unwrap();
+        assert_eq!(again.frames, bvh.frames);
+        assert_eq!(again.frame_time, bvh.frame_time);
+        assert_eq!(again.joints.len(), bvh.joints.len());
+        for (a, b) in again.joints.iter().zip(&bvh.joints) {
+            assert_eq!(
+                (&a.name, a.parent, a.offset, &a.channels),
+                (&b.name, b.parent, b.offset, &b.channels)
+            );
+        }
+        assert_eq!(default_scale(&cmu_map()), Some(CMU_SCALE));
+        assert_eq!(default_scale(&echo_map()), None);
     }
 
     #[test]

@@ -4,6 +4,7 @@
 //! World convention: REP-103, z up, metres.
 
 pub mod bvh;
+pub mod capture;
 pub mod dataset;
 pub mod intergen;
 pub mod posing;
