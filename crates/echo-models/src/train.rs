@@ -62,6 +62,8 @@ pub struct TrainConfig {
     pub w_bone: f64,
     /// Seed (shuffling, prompt choice).
     pub seed: u64,
+    /// The data spec trained on (`echo-data`; None: the generator's splits).
+    pub data: Option<String>,
 }
 
 impl Default for TrainConfig {
@@ -83,6 +85,7 @@ impl Default for TrainConfig {
             w_interaction: 0.1,
             w_bone: 0.1,
             seed: 1,
+            data: None,
         }
     }
 }
@@ -299,6 +302,9 @@ pub struct Run<'a> {
     pub state: Option<PathBuf>,
     /// Continue from the saved state.
     pub resume: bool,
+    /// Training and validation windows from the dataset layer (`echo-data`); `None`: the
+    /// generator's train and validation splits (`train_clips`, `val_clips`).
+    pub data: Option<(Vec<Window>, Vec<Window>)>,
 }
 
 /// Train a forecaster; returns the best weights (by validation JPE at 1.0 s) and the log.
@@ -316,14 +322,25 @@ pub fn train(
         cfg.text_dim
     );
     let text = if cfg.text_dim > 0 { run.text } else { None };
-    let train_clips = generate_split(Split::Train, 0..t.train_clips, 2, &|| {});
-    let val_clips = generate_split(Split::Val, 0..t.val_clips, 2, &|| {});
-    let train_w: Vec<Window> = train_clips
-        .iter()
-        .flat_map(|c| windows(c, t.stride))
-        .collect();
-    let val_w: Vec<Window> = val_clips.iter().flat_map(|c| windows(c, 8)).collect();
-    drop(train_clips);
+    let (train_w, val_w) = match &run.data {
+        Some((tr, va)) => (tr.clone(), va.clone()),
+        None => {
+            let train_clips = generate_split(Split::Train, 0..t.train_clips, 2, &|| {});
+            let val_clips = generate_split(Split::Val, 0..t.val_clips, 2, &|| {});
+            let tr: Vec<Window> = train_clips
+                .iter()
+                .flat_map(|c| windows(c, t.stride))
+                .collect();
+            let va: Vec<Window> = val_clips.iter().flat_map(|c| windows(c, 8)).collect();
+            (tr, va)
+        }
+    };
+    anyhow::ensure!(
+        !train_w.is_empty() && !val_w.is_empty(),
+        "no training or no validation windows ({} and {})",
+        train_w.len(),
+        val_w.len()
+    );
     let table = match text {
         Some(enc) => Some(TextTable::build(enc, &[&train_w])?),
         None => None,
@@ -528,6 +545,7 @@ mod tests {
             text: None,
             state: Some(stem.to_path_buf()),
             resume,
+            data: None,
         };
         // One epoch, saved; the state is copied so two runs can resume from it.
         t.epochs = 1;
@@ -576,6 +594,7 @@ mod tests {
             text: Some(&enc),
             state: None,
             resume: false,
+            data: None,
         };
         let (_, log) = train(&cfg, &t, &run, &mut Quiet).unwrap();
         assert!(log[0].train_loss.is_finite());

@@ -82,6 +82,17 @@ pub enum Verb {
         /// Describe this dataset directory instead.
         #[arg(long)]
         dir: Option<PathBuf>,
+        /// Motion statistics of a data spec (docs/DATA.md; all of its splits), side by side
+        /// with every --vs spec: root speed and acceleration, joint speed, arm swing,
+        /// inter-person distance, contact rate.
+        #[arg(long)]
+        data: Option<String>,
+        /// A spec to compare with --data (repeatable).
+        #[arg(long)]
+        vs: Vec<String>,
+        /// With --data: write the statistics as JSON here.
+        #[arg(long)]
+        json: Option<PathBuf>,
     },
     /// Turn human–human interactions into human–robot ones (person B becomes TIAGo++ through
     /// the retargeter), report their social agreement with the original pairs, and optionally
@@ -242,9 +253,38 @@ pub fn run(verb: Verb) -> Result<()> {
             at,
         } => render(&kind, &split, index, &out, strip, predict.as_deref(), at),
         Verb::Stats {
+            data: Some(spec),
+            vs,
+            json,
+            clips_per_kind,
+            ..
+        } => {
+            let mut sets = vec![];
+            for text in std::iter::once(&spec).chain(&vs) {
+                let parsed = echo_data::Spec::parse(text)?;
+                let mut caps = vec![];
+                for split in [Split::Train, Split::Val, Split::Test] {
+                    for (_, c) in echo_data::captures(
+                        &parsed,
+                        split,
+                        clips_per_kind * echo_motion::synth::KINDS.len() as u64,
+                    )? {
+                        caps.extend(c);
+                    }
+                }
+                sets.push((text.clone(), echo_data::stats::motion_stats(&caps)));
+            }
+            println!("{}", echo_data::stats::markdown(&sets));
+            if let Some(p) = json {
+                std::fs::write(&p, serde_json::to_vec_pretty(&sets)?)?;
+            }
+            Ok(())
+        }
+        Verb::Stats {
             split,
             clips_per_kind,
             dir,
+            ..
         } => {
             let clips: Vec<Clip> = match dir {
                 Some(d) => {

@@ -54,6 +54,83 @@ pub struct Args {
     /// Retargeter for --hri.
     #[arg(long, default_value = "models/retargeter")]
     pub with_retargeter: PathBuf,
+    /// Evaluate on a data spec's test split instead of the generator's (docs/DATA.md), e.g.
+    /// `cmu:data/cmu` or `bvh:A.bvh+B.bvh@TEXT`; a `bvh:` item is evaluated whole.
+    #[arg(long, conflicts_with = "bvh_pair")]
+    pub data: Option<String>,
+    /// Evaluate on one real two-person capture: person A's and person B's BVH files (CMU
+    /// skeleton; one capture volume and clock). Windows at stride 1 unless --stride is given.
+    #[arg(long, num_args = 2, value_names = ["A_BVH", "B_BVH"])]
+    pub bvh_pair: Option<Vec<PathBuf>>,
+    /// The description given to text-conditioned models with --bvh-pair.
+    #[arg(long)]
+    pub prompt: Option<String>,
+    /// Also score damped-velocity extrapolation with this time constant, s (repeatable).
+    #[arg(long)]
+    pub damped_tau: Vec<f64>,
+}
+
+/// Windows of `--data` / `--bvh-pair` (test split, no augmentation), with a description line.
+fn spec_windows(args: &Args) -> Result<Option<(Vec<echo_eval::window::Window>, String)>> {
+    let spec = match (&args.data, &args.bvh_pair) {
+        (Some(d), _) => d.clone(),
+        (None, Some(files)) => format!(
+            "bvh:{}+{}{}",
+            files[0].display(),
+            files[1].display(),
+            args.prompt
+                .as_ref()
+                .map(|p| format!("@{p}"))
+                .unwrap_or_default()
+        ),
+        (None, None) => return Ok(None),
+    };
+    let parsed = echo_data::Spec::parse(&spec)?;
+    let per = echo_data::captures(
+        &parsed,
+        echo_motion::synth::Split::Test,
+        args.clips_per_kind * KINDS.len() as u64 * 20,
+    )?;
+    // Real captures are few: every window (stride 1) unless a stride was asked for.
+    let stride_given = std::env::args().any(|a| a == "--stride" || a.starts_with("--stride="));
+    let real_stride = if stride_given { args.stride } else { 1 };
+    let per: Vec<_> = per
+        .into_iter()
+        .map(|(mut it, c)| {
+            it.weight = None;
+            (it, c)
+        })
+        .collect();
+    let w = echo_data::windows(
+        &per,
+        &echo_data::Cut {
+            stride: args.stride,
+            real_stride,
+            augment: echo_data::augment::Augment::NONE,
+            seed: 0,
+        },
+    );
+    let mut desc = vec![];
+    for (_, caps) in &per {
+        for c in caps {
+            let r = c
+                .report
+                .as_ref()
+                .map(|r| format!(" ({})", r.notes.join("; ")))
+                .unwrap_or_default();
+            desc.push(format!(
+                "{} [{}] {:.1} s{r}",
+                c.name,
+                c.source,
+                c.clip.frames.len() as f64 / echo_motion::synth::FPS
+            ));
+        }
+    }
+    anyhow::ensure!(
+        !w.is_empty(),
+        "{spec}: no evaluation windows (a capture needs at least 2.07 s of motion)"
+    );
+    Ok(Some((w, format!("data {spec}: {}", desc.join(", ")))))
 }
 
 fn hri(args: &Args, split: Split) -> Result<()> {
@@ -277,11 +354,20 @@ pub fn run(args: Args) -> Result<()> {
             "--baseline must be zero-velocity, constant-velocity or all, not '{other}'"
         ),
     };
-    let n = args.clips_per_kind * KINDS.len() as u64;
-    let pb = progress(n, "generating");
-    let clips = generate_split(split, 0..n, 2, &|| pb.inc(1));
-    pb.finish_and_clear();
-    let w: Vec<_> = clips.iter().flat_map(|c| windows(c, args.stride)).collect();
+    for &tau_s in &args.damped_tau {
+        predictors.push(Box::new(echo_eval::DampedVelocity { tau_s }));
+    }
+    let (w, what) = match spec_windows(&args)? {
+        Some(x) => x,
+        None => {
+            let n = args.clips_per_kind * KINDS.len() as u64;
+            let pb = progress(n, "generating");
+            let clips = generate_split(split, 0..n, 2, &|| pb.inc(1));
+            pb.finish_and_clear();
+            let w: Vec<_> = clips.iter().flat_map(|c| windows(c, args.stride)).collect();
+            (w, format!("split {} — {} clips", args.split, clips.len()))
+        }
+    };
     let mut reports: Vec<Report> = predictors
         .iter_mut()
         .map(|p| evaluate(p.as_mut(), &w, 64))
@@ -296,9 +382,7 @@ pub fn run(args: Args) -> Result<()> {
         reports.push(evaluate(&mut p, &w, 64));
     }
     println!(
-        "split {} — {} clips, {} windows (observe 0.53 s, predict 1.53 s at 15 Hz), errors in mm\n",
-        args.split,
-        clips.len(),
+        "{what}; {} windows (observe 0.53 s, predict 1.53 s at 15 Hz), errors in mm\n",
         w.len()
     );
     println!("{}", markdown_table(&reports));

@@ -127,6 +127,78 @@ pub struct Args {
     /// Forecaster: device, cpu or cuda (needs echoctl built with `--features cuda`).
     #[arg(long, default_value = "cpu")]
     pub device: String,
+    /// Forecaster: training data as a spec (docs/DATA.md): e.g. `cmu:data/cmu`,
+    /// `cmu:data/cmu*0.6,synthetic:1300*0.4`, `intergen:/data/InterHuman`. Train and validation
+    /// windows come from each source's own split. Default: the generator (`--train-clips`).
+    #[arg(long)]
+    pub data: Option<String>,
+    /// Forecaster with --data: augment real captures (role swap, mirror, speed, proportions).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub augment: bool,
+    /// Forecaster: time constant of the damped-velocity prior the decoded displacement is
+    /// added to, s (0: the last observed frame, as in the paper).
+    #[arg(long, default_value_t = 0.0)]
+    pub velocity_prior_s: f64,
+    /// Forecaster with --data: window stride of real captures, frames at 15 Hz (synthetic
+    /// sources use 3).
+    #[arg(long, default_value_t = 1)]
+    pub real_stride: usize,
+}
+
+/// Training and validation windows of a data spec.
+pub fn spec_windows(
+    spec: &str,
+    synthetic_clips: u64,
+    augment: bool,
+    real_stride: usize,
+    seed: u64,
+) -> Result<(
+    Vec<echo_eval::window::Window>,
+    Vec<echo_eval::window::Window>,
+)> {
+    use echo_data::augment::Augment;
+    use echo_motion::synth::Split;
+    let spec = echo_data::Spec::parse(spec)?;
+    let train = echo_data::captures(&spec, Split::Train, synthetic_clips)?;
+    let val = echo_data::captures(&spec, Split::Val, synthetic_clips)?;
+    let cut = |stride_real: usize, aug: Augment| echo_data::Cut {
+        stride: 3,
+        real_stride: stride_real,
+        augment: aug,
+        seed,
+    };
+    let tw = echo_data::windows(
+        &train,
+        &cut(
+            real_stride,
+            if augment { Augment::ALL } else { Augment::NONE },
+        ),
+    );
+    // Validation: no augmentation, no mixing weights (every window once).
+    let val: Vec<_> = val
+        .into_iter()
+        .map(|(mut it, c)| {
+            it.weight = None;
+            (it, c)
+        })
+        .collect();
+    let vw = echo_data::windows(&val, &cut(2, Augment::NONE));
+    for (it, caps) in &train {
+        println!(
+            "train: {:?}: {} captures{}",
+            it.source,
+            caps.len(),
+            it.weight
+                .map(|w| format!(", weight {w}"))
+                .unwrap_or_default()
+        );
+    }
+    println!(
+        "{} training windows, {} validation windows",
+        tw.len(),
+        vw.len()
+    );
+    Ok((tw, vw))
 }
 
 /// The device named by `--device`.
@@ -396,6 +468,7 @@ pub fn run(args: Args) -> Result<()> {
         rounds: args.rounds,
         text_dim: echo_text::MINILM_DIM,
         social_identity_init: args.social_init == SocialInit::Identity,
+        velocity_prior_s: args.velocity_prior_s,
         ..Default::default()
     };
     let mut t = TrainConfig {
@@ -407,6 +480,17 @@ pub fn run(args: Args) -> Result<()> {
         ..Default::default()
     };
     args.variant.apply(&mut model, &mut t);
+    t.data = args.data.clone();
+    let data = match &args.data {
+        Some(spec) => Some(spec_windows(
+            spec,
+            args.train_clips,
+            args.augment,
+            args.real_stride,
+            args.seed,
+        )?),
+        None => None,
+    };
     let text = if model.text_dim > 0 {
         Some(SentenceEncoder::load_default(&dev)?)
     } else {
@@ -437,6 +521,7 @@ pub fn run(args: Args) -> Result<()> {
         text: text.as_ref(),
         state: Some(args.out.clone()),
         resume: args.resume,
+        data,
     };
     let (varmap, log) = train(&model, &t, &run, &mut bar)?;
     bar.pb.finish_and_clear();
