@@ -263,13 +263,18 @@ pub fn run(verb: Verb) -> Result<()> {
             for text in std::iter::once(&spec).chain(&vs) {
                 let parsed = echo_data::Spec::parse(text)?;
                 let mut caps = vec![];
-                for split in [Split::Train, Split::Val, Split::Test] {
-                    for (_, c) in echo_data::captures(
-                        &parsed,
-                        split,
-                        clips_per_kind * echo_motion::synth::KINDS.len() as u64,
-                    )? {
-                        caps.extend(c);
+                for item in &parsed.items {
+                    // A named BVH pair is the same capture in every split: count it once.
+                    let splits: &[Split] = match item.source {
+                        echo_data::Source::BvhPair { .. } => &[Split::Train],
+                        _ => &[Split::Train, Split::Val, Split::Test],
+                    };
+                    for &split in splits {
+                        caps.extend(echo_data::source::load(
+                            &item.source,
+                            split,
+                            clips_per_kind * echo_motion::synth::KINDS.len() as u64,
+                        )?);
                     }
                 }
                 sets.push((text.clone(), echo_data::stats::motion_stats(&caps)));
