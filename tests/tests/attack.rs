@@ -371,7 +371,7 @@ async fn hostile_input_on_every_key_never_reaches_the_robot() -> anyhow::Result<
     let f = forecasts.lock().unwrap();
     let during = f
         .iter()
-        .filter(|t| **t > started && **t <= flood_end)
+        .filter(|t| **t > started && **t <= impersonation_start)
         .count();
     let after = f.iter().filter(|t| **t > flood_end).count();
     let report = serde_json::json!({
