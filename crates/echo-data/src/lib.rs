@@ -137,7 +137,10 @@ mod tests {
                 .collect()
         };
         let item = |w: f64| Item {
-            source: Source::Synthetic { clips: None },
+            source: Source::Synthetic {
+                clips: None,
+                walking: false,
+            },
             weight: Some(w),
         };
         let per = vec![

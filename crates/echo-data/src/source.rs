@@ -13,7 +13,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use echo_motion::capture::{load_bvh_pair, CleanReport, PairOptions};
-use echo_motion::synth::{generate_split, Clip, Split};
+use echo_motion::synth::{generate_split, generate_walking_split, Clip, Split};
 use echo_msgs::Interaction;
 
 use crate::spec::Source;
@@ -137,13 +137,18 @@ pub fn load(
     synthetic_clips: u64,
 ) -> Result<Vec<Capture>, DataError> {
     match source {
-        Source::Synthetic { clips } => {
+        Source::Synthetic { clips, walking } => {
             let train = clips.unwrap_or(synthetic_clips).max(1);
             let n = match split {
                 Split::Train => train,
                 _ => (train / 20).max(26),
             };
-            Ok(generate_split(split, 0..n, 2, &|| {})
+            let clips = if *walking {
+                generate_walking_split(split, 0..n, 2, &|| {})
+            } else {
+                generate_split(split, 0..n, 2, &|| {})
+            };
+            Ok(clips
                 .into_iter()
                 .map(|clip| Capture {
                     name: format!("{}", clip.params.seed),

@@ -4,6 +4,8 @@
 //! spec   := item ("," item)*
 //! item   := source ["*" weight]
 //! source := "synthetic" [":" clips]            the generator (clips for the train split)
+//!         | "synthetic-walk" [":" clips]       the generator's walking clips (approaches from
+//!                                              2.4–5 m at 0.6–1.5 m/s, smooth starts and stops)
 //!         | "intergen:" root                   InterGen / InterHuman layout
 //!         | "bvh:" a.bvh "+" b.bvh ["@" text]  one two-person capture (two files, one clock)
 //!         | "cmu:" dir                         every CMU pair in dir: <s>_<t>.bvh + <s+1>_<t>.bvh
@@ -22,6 +24,8 @@ pub enum Source {
     Synthetic {
         /// Training clips (None: the caller's default).
         clips: Option<u64>,
+        /// The walking clips (`synthetic-walk`) instead of the original choreography.
+        walking: bool,
     },
     /// The InterGen / InterHuman layout (`motions_processed/person{1,2}/*.npy`, `annots/`,
     /// `split/{train,val,test}.txt`).
@@ -68,7 +72,7 @@ pub struct Spec {
 
 /// Why a spec does not parse.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("data spec '{spec}': {what} (forms: synthetic[:clips], intergen:ROOT, bvh:A.bvh+B.bvh[@TEXT], cmu:DIR, echo:DIR; each optionally *WEIGHT, comma-separated)")]
+#[error("data spec '{spec}': {what} (forms: synthetic[:clips], synthetic-walk[:clips], intergen:ROOT, bvh:A.bvh+B.bvh[@TEXT], cmu:DIR, echo:DIR; each optionally *WEIGHT, comma-separated)")]
 pub struct SpecError {
     /// The spec.
     pub spec: String,
@@ -112,7 +116,8 @@ impl Spec {
                 }
             };
             let source = match kind {
-                "synthetic" => Source::Synthetic {
+                "synthetic" | "synthetic-walk" => Source::Synthetic {
+                    walking: kind == "synthetic-walk",
                     clips: if arg.is_empty() {
                         None
                     } else {
@@ -162,7 +167,7 @@ impl Spec {
 /// so a comma there would be ambiguous: prompts may not contain commas followed by a source
 /// name; a comma followed by a known source keyword always starts a new item).
 fn split_items(text: &str) -> Vec<String> {
-    const KEYS: [&str; 5] = ["synthetic", "intergen:", "bvh:", "cmu:", "echo:"];
+    const KEYS: [&str; 5] = ["synthetic", "intergen:", "bvh:", "cmu:", "echo:"]; // "synthetic" covers "synthetic-walk"
     let mut out = vec![String::new()];
     let mut rest = text;
     while let Some(i) = rest.find(',') {
@@ -195,7 +200,10 @@ mod tests {
         assert_eq!(
             s.items[0],
             Item {
-                source: Source::Synthetic { clips: Some(1300) },
+                source: Source::Synthetic {
+                    clips: Some(1300),
+                    walking: false
+                },
                 weight: Some(0.5)
             }
         );
@@ -210,7 +218,17 @@ mod tests {
         );
         assert_eq!(
             Spec::parse("synthetic").unwrap().items[0].source,
-            Source::Synthetic { clips: None }
+            Source::Synthetic {
+                clips: None,
+                walking: false
+            }
+        );
+        assert_eq!(
+            Spec::parse("synthetic-walk:30").unwrap().items[0].source,
+            Source::Synthetic {
+                clips: Some(30),
+                walking: true
+            }
         );
     }
 

@@ -26,6 +26,10 @@ pub struct Intent {
     pub look_at: Option<Vector3<f64>>,
     /// Gait phase (radians) and amplitude in [0, 1] (0 = standing).
     pub gait: (f64, f64),
+    /// Arm swing while walking, in [0, 1] (0: the arms hang still): each arm swings opposite
+    /// its leg, ±0.2 arm lengths at full gait; an arm reaching for something swings less the
+    /// further its target is from the hanging position.
+    pub arm_swing: f64,
 }
 
 impl Intent {
@@ -39,6 +43,7 @@ impl Intent {
             right_hand: None,
             look_at: None,
             gait: (0.0, 0.0),
+            arm_swing: 0.0,
         }
     }
 }
@@ -69,7 +74,15 @@ pub fn pose(body: &Body, it: &Intent) -> Pose {
     }
     // Arms.
     for (right, target) in [(false, it.left_hand), (true, it.right_hand)] {
-        let target = target.unwrap_or_else(|| arm_down(body, right));
+        let down = arm_down(body, right);
+        let mut target = target.unwrap_or(down);
+        if it.arm_swing > 0.0 && amp > 0.0 {
+            // The left arm swings back as the left leg swings forward (sin(phase) > 0).
+            let sign = if right { 1.0 } else { -1.0 };
+            let free = 1.0 - ((target - down).norm() / 0.3).clamp(0.0, 1.0);
+            target.x +=
+                sign * 0.2 * arm_length(body, right) * it.arm_swing * amp * free * phase.sin();
+        }
         reach(&mut p, body, right, &target);
     }
     // Head: yaw and pitch toward the target, limited to what a neck does.

@@ -34,6 +34,49 @@ pub const KINDS: [Interaction; 13] = [
     Interaction::Idle,
 ];
 
+/// The interaction types of the walking clips: those performed on the way to, or past, the
+/// other person.
+pub const WALKING_KINDS: [Interaction; 6] = [
+    Interaction::Handshake,
+    Interaction::HighFive,
+    Interaction::Handover,
+    Interaction::Hug,
+    Interaction::ApproachGreet,
+    Interaction::WalkPast,
+];
+
+/// Speed profile of a walk of `dist` metres at up to `v` m/s with peak acceleration `acc`:
+/// raised-cosine ramps up and down (`v(τ) = v/2·(1 − cos(πτ/T))`, `T = πv/2acc`), a cruise in
+/// between (none when the walk is too short to reach `v`). Position and speed `t` seconds after
+/// the start, and the duration.
+pub fn smooth_walk(dist: f64, v: f64, acc: f64, t: f64) -> (f64, f64, f64) {
+    if dist <= 0.0 || v <= 0.0 || acc <= 0.0 {
+        return (0.0, 0.0, 0.0);
+    }
+    let ramp_of = |v: f64| PI * v / (2.0 * acc);
+    // Too short to reach v: the largest v whose two ramps cover dist (v·T = dist).
+    let v = v.min((2.0 * acc * dist / PI).sqrt());
+    let ta = ramp_of(v);
+    let tc = ((dist - v * ta) / v).max(0.0);
+    let total = 2.0 * ta + tc;
+    if t <= 0.0 {
+        return (0.0, 0.0, total);
+    }
+    if t < ta {
+        let x = v / 2.0 * (t - ta / PI * (PI * t / ta).sin());
+        return (x, v / 2.0 * (1.0 - (PI * t / ta).cos()), total);
+    }
+    if t < ta + tc {
+        return (v * ta / 2.0 + v * (t - ta), v, total);
+    }
+    if t < total {
+        let s = t - ta - tc;
+        let x = v * ta / 2.0 + v * tc + v / 2.0 * (s + ta / PI * (PI * s / ta).sin());
+        return (x.min(dist), v / 2.0 * (1.0 + (PI * s / ta).cos()), total);
+    }
+    (dist, 0.0, total)
+}
+
 /// Ranges the clip parameters are drawn from.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParamRanges {
@@ -58,6 +101,16 @@ impl ParamRanges {
             distance: (1.2, 2.6),
             speed: (0.7, 1.3),
             amplitude: (0.8, 1.2),
+        }
+    }
+
+    /// The walking ranges: people start 2.4–5 m apart and walk at 0.6–1.5 m/s (real people walk
+    /// at a median 0.5–0.8 m/s, docs/RESULTS.md).
+    pub fn walking() -> Self {
+        ParamRanges {
+            distance: (2.4, 5.0),
+            speed: (0.6, 1.5),
+            ..Self::train()
         }
     }
 
@@ -104,6 +157,11 @@ pub struct ClipParams {
     pub amplitude: f64,
     /// Scene placement: position and rotation.
     pub placement: (f64, f64, f64),
+    /// Walk the way people walk ([`Split::walking_clip`]): approaches from further away at the
+    /// drawn speed, with smooth starts and stops (raised-cosine speed ramps, peak acceleration
+    /// 0.8–1.3 m/s²), gait and arm swing scaled with speed. `false`: the original choreography
+    /// (short approaches; every existing split).
+    pub locomotion: bool,
 }
 
 impl ClipParams {
@@ -127,6 +185,7 @@ impl ClipParams {
                 rng.random_range(-1.0..1.0),
                 rng.random_range(-PI..PI),
             ),
+            locomotion: false,
         }
     }
 }
@@ -217,6 +276,9 @@ pub fn generate(params: &ClipParams) -> Clip {
         let mut out = [[[0f32; 3]; NUM_JOINTS]; 2];
         for p in 0..2 {
             let mut it = intents[p].clone();
+            if params.locomotion {
+                it.arm_swing = 1.0;
+            }
             // Natural variability: a little sway of the whole body and of the hands.
             it.root_xy[0] += 0.01 * noise[p].at(t, 0);
             it.root_xy[1] += 0.01 * noise[p].at(t, 1);
@@ -255,12 +317,20 @@ struct Scene {
 impl Scene {
     fn new(p: &ClipParams, _bodies: &[Body; 2], rng: &mut impl Rng) -> Scene {
         let r: [f64; 8] = std::array::from_fn(|_| rng.random::<f64>());
-        let duration = match p.kind {
+        let mut duration = match p.kind {
             Interaction::WalkPast => 5.0 + 1.5 * r[7],
             Interaction::ApproachGreet | Interaction::ShoulderTap => 5.5 + 1.5 * r[7],
             Interaction::Imitation => 6.0 + 2.0 * r[7],
             _ => 4.5 + 1.5 * r[7],
         };
+        if p.locomotion {
+            // The longer walk comes on top of the interaction.
+            duration += match p.kind {
+                Interaction::WalkPast => 0.0,
+                Interaction::ApproachGreet => p.distance / p.speed,
+                _ => (p.distance / 2.0) / p.speed,
+            };
+        }
         Scene {
             kind: p.kind,
             p: p.clone(),
@@ -274,6 +344,13 @@ impl Scene {
     fn approach(&self, meet: f64, t: f64) -> (f64, f64, f64, f64) {
         let d = self.p.distance.max(meet);
         let walk = (d - meet) / 2.0;
+        if self.p.locomotion {
+            let t0 = 0.2 + 0.3 * self.r[0];
+            let acc = 0.8 + 0.5 * self.r[5];
+            let (x, v, dur) = smooth_walk(walk, self.p.speed, acc, t - t0);
+            let gait = (v / self.p.speed).clamp(0.0, 1.0);
+            return (x, d - x, t0 + dur, gait);
+        }
         let t_walk = walk / self.p.speed;
         let t0 = 0.3 + 0.4 * self.r[0];
         let w = if walk > 0.05 {
@@ -364,14 +441,20 @@ impl Scene {
                     let far = self.p.distance + 1.2;
                     let walk = far - 1.2;
                     let t0 = 0.3;
-                    let t_walk = walk / p.speed;
-                    let w = ramp(t, t0, t0 + t_walk);
-                    (
-                        walk * w,
-                        far,
-                        t0 + t_walk,
-                        if t > t0 && t < t0 + t_walk { 1.0 } else { 0.0 },
-                    )
+                    if p.locomotion {
+                        let acc = 0.8 + 0.5 * self.r[5];
+                        let (x, v, dur) = smooth_walk(walk, p.speed, acc, t - t0);
+                        (x, far, t0 + dur, (v / p.speed).clamp(0.0, 1.0))
+                    } else {
+                        let t_walk = walk / p.speed;
+                        let w = ramp(t, t0, t0 + t_walk);
+                        (
+                            walk * w,
+                            far,
+                            t0 + t_walk,
+                            if t > t0 && t < t0 + t_walk { 1.0 } else { 0.0 },
+                        )
+                    }
                 } else {
                     (0.0, p.distance + 0.5, 0.4 + 0.8 * self.r[0], 0.0)
                 };
@@ -570,8 +653,23 @@ impl Scene {
                 let lane = 0.15 + 0.3 * self.r[1];
                 let start = 2.0 + p.distance;
                 let v = p.speed;
-                let xa = v * t;
-                let xb = start - v * t;
+                let (xa, xb) = if p.locomotion {
+                    // From rest, smoothly, and on past each other without stopping.
+                    let acc = 0.8 + 0.5 * self.r[5];
+                    let ramp_t = PI * v / (2.0 * acc);
+                    let x = |t: f64| {
+                        if t <= 0.0 {
+                            0.0
+                        } else if t < ramp_t {
+                            v / 2.0 * (t - ramp_t / PI * (PI * t / ramp_t).sin())
+                        } else {
+                            v * ramp_t / 2.0 + v * (t - ramp_t)
+                        }
+                    };
+                    (x(t - 0.3), start - x(t - 0.3 - 0.4 * self.r[2]))
+                } else {
+                    (v * t, start - v * t)
+                };
                 // Each sidesteps around the crossing so that they keep ≥ 0.7 m apart.
                 let t_cross = start / (2.0 * v);
                 let avoid = ((0.75 - lane) / 2.0).max(0.0) * (-((t - t_cross) / 0.9).powi(2)).exp();
@@ -761,6 +859,39 @@ impl Split {
     }
 }
 
+impl Split {
+    /// The `i`-th walking clip of the split ([`WALKING_KINDS`] in turn, walking ranges, seeds
+    /// 500 000 000 after the split's own).
+    pub fn walking_clip(self, i: u64) -> ClipParams {
+        let kind = WALKING_KINDS[(i % WALKING_KINDS.len() as u64) as usize];
+        let ranges = match self {
+            Split::HeldOut => ParamRanges {
+                distance: (2.4, 5.0),
+                speed: (0.6, 1.5),
+                ..ParamRanges::held_out()
+            },
+            _ => ParamRanges::walking(),
+        };
+        let mut p = ClipParams::sample(kind, &ranges, self.seed_base() + 500_000_000 + i);
+        p.locomotion = true;
+        p
+    }
+}
+
+/// Generate walking clips `range` of a split ([`Split::walking_clip`]).
+pub fn generate_walking_split(
+    split: Split,
+    range: std::ops::Range<u64>,
+    threads: usize,
+    progress: &(dyn Fn() + Sync),
+) -> Vec<Clip> {
+    generate_params(
+        range.map(|i| split.walking_clip(i)).collect(),
+        threads,
+        progress,
+    )
+}
+
 /// Generate clips `range` of a split on `threads` threads, calling `progress` after each clip.
 pub fn generate_split(
     split: Split,
@@ -768,7 +899,14 @@ pub fn generate_split(
     threads: usize,
     progress: &(dyn Fn() + Sync),
 ) -> Vec<Clip> {
-    let ids: Vec<u64> = range.collect();
+    generate_params(range.map(|i| split.clip(i)).collect(), threads, progress)
+}
+
+fn generate_params(
+    ids: Vec<ClipParams>,
+    threads: usize,
+    progress: &(dyn Fn() + Sync),
+) -> Vec<Clip> {
     let threads = threads.max(1);
     let chunk = ids.len().div_ceil(threads).max(1);
     let mut out: Vec<Vec<Clip>> = vec![];
@@ -778,8 +916,8 @@ pub fn generate_split(
             .map(|c| {
                 s.spawn(move || {
                     c.iter()
-                        .map(|i| {
-                            let clip = generate(&split.clip(*i));
+                        .map(|params| {
+                            let clip = generate(params);
                             progress();
                             clip
                         })
@@ -842,5 +980,84 @@ mod bow_tests {
             );
             let _ = (fa, fb);
         }
+    }
+}
+
+#[cfg(test)]
+mod walking_tests {
+    use super::*;
+
+    /// Root speeds (floor plane, over 1/15 s) and accelerations of person `p`.
+    fn speeds(c: &Clip, p: usize) -> (Vec<f64>, Vec<f64>) {
+        let k = 2;
+        let dt = k as f64 / FPS;
+        let r: Vec<Vector3<f64>> = (0..c.frames.len()).map(|f| c.joints(f, p)[0]).collect();
+        let v: Vec<Vector3<f64>> = (k..r.len() - k)
+            .map(|f| (r[f + k] - r[f - k]) / (2.0 * dt))
+            .collect();
+        let a = (k..v.len() - k)
+            .map(|i| ((v[i + k] - v[i - k]) / (2.0 * dt)).xy().norm())
+            .collect();
+        (v.iter().map(|x| x.xy().norm()).collect(), a)
+    }
+
+    #[test]
+    fn smooth_walks_reach_their_speed_and_stop_where_asked() {
+        let (x, v, total) = smooth_walk(2.0, 1.0, 1.0, 100.0);
+        assert!((x - 2.0).abs() < 1e-9 && v == 0.0 && total > 2.0);
+        let (_, vmid, _) = smooth_walk(2.0, 1.0, 1.0, total / 2.0);
+        assert!((vmid - 1.0).abs() < 1e-9, "cruise at the drawn speed");
+        // Too short a walk to reach the speed: it peaks lower and still ends at the distance.
+        let (x, _, t) = smooth_walk(0.3, 1.5, 1.0, 100.0);
+        assert!((x - 0.3).abs() < 1e-9 && t > 0.0);
+        let (_, vpeak, _) = smooth_walk(0.3, 1.5, 1.0, t / 2.0);
+        assert!(vpeak < 1.5 && vpeak > 0.3);
+        // Continuous position: no step larger than the speed allows.
+        let mut prev = 0.0;
+        for i in 0..400 {
+            let (x, _, _) = smooth_walk(2.0, 1.0, 1.0, i as f64 * 0.01);
+            assert!(x - prev <= 1.0 * 0.01 + 1e-9 && x >= prev - 1e-12);
+            prev = x;
+        }
+    }
+
+    #[test]
+    fn walking_clips_walk_accelerate_and_swing_their_arms_like_people() {
+        let clips = generate_walking_split(Split::Test, 0..12, 2, &|| {});
+        let (mut v, mut a) = (vec![], vec![]);
+        for c in &clips {
+            assert!(c.params.locomotion);
+            assert!(WALKING_KINDS.contains(&c.params.kind));
+            for p in 0..2 {
+                let (vs, acc) = speeds(c, p);
+                v.extend(vs);
+                a.extend(acc);
+            }
+        }
+        let moving = v.iter().filter(|x| **x > 0.3).count() as f64 / v.len() as f64;
+        let amax = a.iter().cloned().fold(0.0, f64::max);
+        assert!(moving > 0.3, "walking share {moving}");
+        assert!(
+            amax < 3.5,
+            "peak acceleration {amax} m/s²: starts and stops are smooth"
+        );
+        // Arms swing while walking: the hanging wrist moves along the facing direction.
+        let c = clips
+            .iter()
+            .find(|c| c.params.kind == Interaction::WalkPast)
+            .unwrap();
+        let f0 = c.frames.len() / 2;
+        let along: Vec<f64> = (f0..f0 + 30)
+            .map(|f| {
+                let j = c.joints(f, 0);
+                let fwd = crate::skeleton::heading(&j) * Vector3::x();
+                (j[20] - j[0]).dot(&fwd)
+            })
+            .collect();
+        let swing = along.iter().cloned().fold(f64::MIN, f64::max)
+            - along.iter().cloned().fold(f64::MAX, f64::min);
+        assert!(swing > 0.1, "wrist swing {swing} m peak to peak");
+        // The original splits are untouched.
+        assert!(!Split::Test.clip(3).locomotion);
     }
 }
