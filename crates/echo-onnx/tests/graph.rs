@@ -4,12 +4,14 @@
 //! an initializer, or the output of an earlier node. Checked for the shipped checkpoint and for
 //! every architecture variant.
 
+mod common;
+
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
 use candle_core::{DType, Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
-use echo_models::model::{Forecaster, ForecasterConfig};
+use echo_models::model::Forecaster;
 use echo_models::CheckpointMeta;
 use echo_onnx::export::{build, build_checkpoint};
 use echo_onnx::proto::ModelProto;
@@ -119,49 +121,7 @@ fn shipped_checkpoint_graph_is_well_formed() {
 #[test]
 fn every_variant_graph_is_well_formed() {
     let dev = Device::Cpu;
-    let base = ForecasterConfig {
-        d_model: 32,
-        heads: 4,
-        text_dim: 8,
-        ..Default::default()
-    };
-    let variants = [
-        base.clone(),
-        ForecasterConfig {
-            text_dim: 0,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            dct: true,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            interleaved: false,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            displacement: false,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            temp_mlp: 0,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            rounds: 0,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            velocity_prior_s: 0.4,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            self_layers: 2,
-            dct: true,
-            text_dim: 0,
-            ..base.clone()
-        },
-    ];
+    let variants = common::variants();
     for cfg in &variants {
         let vm = VarMap::new();
         Forecaster::new(cfg.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev)).unwrap();

@@ -2,13 +2,15 @@
 //! `scripts/setup` unpacks into `.cache/python-onnx` with its dependencies) loads the exported
 //! models and its checker accepts them with the full check (strict shape and type inference).
 
+mod common;
+
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use candle_core::{DType, Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
-use echo_models::model::{Forecaster, ForecasterConfig};
+use echo_models::model::Forecaster;
 use echo_onnx::export::build;
 use prost::Message;
 
@@ -85,41 +87,7 @@ fn onnx_checker_accepts_every_variant() {
     let Some(dir) = python_onnx() else {
         return;
     };
-    let base = ForecasterConfig {
-        d_model: 32,
-        heads: 4,
-        text_dim: 8,
-        ..Default::default()
-    };
-    let variants = [
-        base.clone(),
-        ForecasterConfig {
-            text_dim: 0,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            dct: true,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            interleaved: false,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            velocity_prior_s: 0.4,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            displacement: false,
-            temp_mlp: 0,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            rounds: 0,
-            self_layers: 2,
-            ..base.clone()
-        },
-    ];
+    let variants = common::variants();
     let scratch = tempfile::tempdir().unwrap();
     let mut files = vec![];
     for (i, cfg) in variants.iter().enumerate() {

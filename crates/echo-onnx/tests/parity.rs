@@ -1,6 +1,8 @@
 //! The exported ONNX graph, run by ONNX Runtime, computes what the candle model computes
 //! (within 1e-4) for every architecture variant, and for the shipped checkpoint.
 
+mod common;
+
 use std::collections::HashMap;
 
 use candle_core::{DType, Device, Tensor};
@@ -39,43 +41,7 @@ fn every_variant_matches_candle() {
         return;
     }
     let dev = Device::Cpu;
-    let base = ForecasterConfig {
-        d_model: 32,
-        heads: 4,
-        text_dim: 8,
-        ..Default::default()
-    };
-    let variants = [
-        base.clone(),
-        ForecasterConfig {
-            text_dim: 0,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            dct: true,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            interleaved: false,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            displacement: false,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            temp_mlp: 0,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            rounds: 0,
-            ..base.clone()
-        },
-        ForecasterConfig {
-            velocity_prior_s: 0.4,
-            ..base.clone()
-        },
-    ];
+    let variants = common::variants();
     let scratch = tempfile::tempdir().unwrap();
     let dir = scratch.path().to_path_buf();
     for (i, cfg) in variants.iter().enumerate() {

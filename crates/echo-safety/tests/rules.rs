@@ -17,15 +17,21 @@ struct Rig {
 }
 
 impl Rig {
-    fn new(cfg: SafetyConfig) -> Rig {
+    /// A supervisor that has not heard from the robot yet.
+    fn bare(cfg: SafetyConfig) -> Rig {
         let sup = Supervisor::new(cfg, RobotModel::tiago_dual()).unwrap();
         let joints = sup.filter().joints().to_vec();
-        let mut r = Rig {
+        Rig {
             sup,
             joints,
             now: Instant::now(),
             stamp: 1,
-        };
+        }
+    }
+
+    /// A supervisor whose robot stands in the home pose.
+    fn new(cfg: SafetyConfig) -> Rig {
+        let mut r = Rig::bare(cfg);
         let home = echo_robot::home_pose();
         let q: Vec<f64> = r
             .joints
@@ -604,13 +610,7 @@ fn joint_states_from_a_second_source_are_refused() {
         state_source: Some("ros2".into()),
         ..Default::default()
     };
-    let sup = Supervisor::new(cfg, RobotModel::tiago_dual()).unwrap();
-    let mut r2 = Rig {
-        joints: sup.filter().joints().to_vec(),
-        sup,
-        now: Instant::now(),
-        stamp: 1,
-    };
+    let mut r2 = Rig::bare(cfg);
     assert!(r2.feed_from("robot", &q).is_err());
     assert!(r2.sup.tick(r2.now).command.is_none());
     r2.feed_from("ros2", &q).unwrap();
@@ -619,13 +619,7 @@ fn joint_states_from_a_second_source_are_refused() {
 
 #[test]
 fn a_robot_starting_beyond_its_hard_limits_gets_no_command() {
-    let sup = Supervisor::new(SafetyConfig::default(), RobotModel::tiago_dual()).unwrap();
-    let mut r = Rig {
-        joints: sup.filter().joints().to_vec(),
-        sup,
-        now: Instant::now(),
-        stamp: 1,
-    };
+    let mut r = Rig::bare(SafetyConfig::default());
     let mut q = vec![0.0; r.joints.len()];
     q[r.idx("torso_lift_joint")] = 0.2;
     let mut bad = q.clone();
@@ -649,13 +643,7 @@ fn a_robot_starting_beyond_its_hard_limits_gets_no_command() {
 
 #[test]
 fn a_robot_starting_between_its_soft_and_hard_limits_recovers_inward_slowly() {
-    let sup = Supervisor::new(SafetyConfig::default(), RobotModel::tiago_dual()).unwrap();
-    let mut r = Rig {
-        joints: sup.filter().joints().to_vec(),
-        sup,
-        now: Instant::now(),
-        stamp: 1,
-    };
+    let mut r = Rig::bare(SafetyConfig::default());
     let i = r.idx("head_1_joint");
     let soft = r.sup.filter().limits()[i];
     let hard = hard_limits(&r)[i];

@@ -33,8 +33,12 @@ pub enum Verb {
     /// animated GIF, numbered PNGs, or a strip of frames.
     Render {
         /// Interaction type, e.g. handshake, wave, hug (snake_case).
-        #[arg(long)]
+        #[arg(long, required_unless_present = "data", default_value = "")]
         kind: String,
+        /// Draw the first capture of this data spec instead of a generated clip (docs/DATA.md),
+        /// e.g. a real pair `bvh:A.bvh+B.bvh@TEXT`.
+        #[arg(long)]
+        data: Option<String>,
         /// Split to draw the clip from.
         #[arg(long, default_value = "test")]
         split: String,
@@ -247,11 +251,21 @@ pub fn run(verb: Verb) -> Result<()> {
             kind,
             split,
             index,
+            data,
             out,
             strip,
             predict,
             at,
-        } => render(&kind, &split, index, &out, strip, predict.as_deref(), at),
+        } => render(
+            &kind,
+            &split,
+            index,
+            data.as_deref(),
+            &out,
+            strip,
+            predict.as_deref(),
+            at,
+        ),
         Verb::Stats {
             data: Some(spec),
             vs,
@@ -400,10 +414,12 @@ pub fn stats_table(clips: &[Clip]) -> String {
     out
 }
 
+#[allow(clippy::too_many_arguments)]
 fn render(
     kind: &str,
     split: &str,
     index: u64,
+    data: Option<&str>,
     out: &std::path::Path,
     strip: Option<usize>,
     predict: Option<&str>,
@@ -411,18 +427,31 @@ fn render(
 ) -> Result<()> {
     let split = Split::parse(split)
         .ok_or_else(|| anyhow!("--split must be train, val, test or held-out"))?;
-    let kinds = echo_motion::synth::KINDS;
-    let k = kinds
-        .iter()
-        .position(|x| {
-            serde_json::to_value(x)
-                .ok()
-                .and_then(|v| v.as_str().map(str::to_string))
-                .as_deref()
-                == Some(kind)
-        })
-        .ok_or_else(|| anyhow!("unknown --kind '{kind}'"))? as u64;
-    let clip = echo_motion::synth::generate(&split.clip(k + index * kinds.len() as u64));
+    let clip = match data {
+        Some(spec) => {
+            let parsed = echo_data::Spec::parse(spec)?;
+            echo_data::captures(&parsed, split, 26)?
+                .into_iter()
+                .flat_map(|(_, c)| c)
+                .next()
+                .ok_or_else(|| anyhow!("{spec}: no capture in the {split:?} split"))?
+                .clip
+        }
+        None => {
+            let kinds = echo_motion::synth::KINDS;
+            let k = kinds
+                .iter()
+                .position(|x| {
+                    serde_json::to_value(x)
+                        .ok()
+                        .and_then(|v| v.as_str().map(str::to_string))
+                        .as_deref()
+                        == Some(kind)
+                })
+                .ok_or_else(|| anyhow!("unknown --kind '{kind}'"))? as u64;
+            echo_motion::synth::generate(&split.clip(k + index * kinds.len() as u64))
+        }
+    };
     println!("{}", clip.texts.join("\n"));
     let view = echo_eval::render::View::default();
     let (truth, pred) = match predict {
