@@ -1,6 +1,6 @@
 //! A hostile client: floods every input key of a running pipeline with malformed, oversized,
 //! non-finite, out-of-range, reordered, far-future, wrong-robot, forged-source and wildcard
-//! messages, JSON and ROS 2 CDR, and counts what it sent per class.
+//! messages, JSON and ROS 2 CDR, and hostile queries, and counts what it sent per class.
 //!
 //! Well-formed hostile messages are mutations of real traffic: [`Templates::capture`] records
 //! one message of each input key from the running pipeline (or builds one where nothing
@@ -28,6 +28,7 @@ pub const CLASSES: &[&str] = &[
     "forged_source",
     "wildcard",
     "ros2_cdr",
+    "query",
 ];
 
 /// One real message per input key, as JSON.
@@ -447,6 +448,31 @@ pub async fn round(
                 sent.add("ros2_cdr");
             } else {
                 sent.put_errors += 1;
+            }
+        }
+    }
+    // Queries: hostile requests to the retargeter's batch queryable (every 10th round: each
+    // waits for its answer, at most 2 s).
+    if n.is_multiple_of(10) {
+        let key = keys::retarget_batch(robot);
+        for p in [
+            b"{\"poses\": \"no\"}".to_vec(),
+            b"{".to_vec(),
+            br#"{"poses":[[[1e999,0,0]]]}"#.to_vec(),
+            vec![b'['; 20_000],
+        ] {
+            match bus
+                .session()
+                .get(key.as_str())
+                .payload(p)
+                .timeout(Duration::from_secs(2))
+                .await
+            {
+                Ok(replies) => {
+                    let _ = replies.recv_async().await;
+                    sent.add("query");
+                }
+                Err(_) => sent.put_errors += 1,
             }
         }
     }
