@@ -40,8 +40,9 @@ pub struct Args {
     pub dry_run: bool,
 }
 
-/// One service of a profile.
+/// One service of a profile (an unknown key, such as a misspelt `"arg"`, is an error).
 #[derive(Debug, Clone, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ServiceSpec {
     /// Name (log prefix, default TLS identity).
     pub name: String,
@@ -58,6 +59,7 @@ pub struct ServiceSpec {
 
 /// A placement profile.
 #[derive(Debug, Clone, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Profile {
     /// What it is for.
     pub description: String,
@@ -295,6 +297,22 @@ mod tests {
             let prof = Profile::load(p.to_str().unwrap(), &dir).unwrap();
             assert!(!prof.description.is_empty(), "{}", p.display());
         }
+    }
+
+    #[test]
+    fn a_misspelt_key_is_an_error_naming_it() {
+        let scratch = tempfile::tempdir().unwrap();
+        let p = scratch.path().join("typo.json");
+        std::fs::write(
+            &p,
+            r#"{"description": "d", "services": [{"name": "safety", "program": "safety", "arg": ["--x"]}]}"#,
+        )
+        .unwrap();
+        let e = format!(
+            "{:#}",
+            Profile::load(p.to_str().unwrap(), Path::new(".")).unwrap_err()
+        );
+        assert!(e.contains("unknown field `arg`"), "{e}");
     }
 
     #[test]
