@@ -26,8 +26,9 @@
 //!    not assumed: the median head-minus-mid-ankle direction over the first 0.5 s must lie along
 //!    file +Y or +Z; a +Z-up file is turned (−90° about its X axis) before the usual conversion;
 //!    any other direction is an error.
-//! 5. **Units.** The standing height in file units, H = median over the first 0.5 s of head minus
-//!    lower ankle along the up axis, gives height = scale × H + [`HEAD_TOP_M`]. With
+//! 5. **Units.** The standing height in file units, H = 90th percentile over the take of head
+//!    minus lower ankle along the up axis (a take may start crouched or mid-squat), gives
+//!    height = scale × H + [`HEAD_TOP_M`]. With
 //!    `scale: Some(s)`, `s` is used as given (a height outside [`HEIGHT_RANGE_M`] only gives a
 //!    note). With `None` and a map whose source has a known unit ([`bvh::default_scale`]: CMU
 //!    0.0564), that unit is used and a height outside the range is an error. Otherwise the unit
@@ -425,7 +426,26 @@ impl Work {
                 ),
             ));
         }
-        let h = median(s.iter().map(|[h, l, r]| h[a] - l[a].min(r[a])).collect());
+        // Standing height: the 90th percentile over the whole take (every 4th frame), so that a
+        // take starting crouched, sitting or mid-squat is measured where the person stands.
+        let mut hs: Vec<f64> = (0..self.bvh.frames.len())
+            .step_by(4)
+            .map(|f| {
+                let p = self.bvh.positions(f);
+                let (h, l, r) = (
+                    p[self.idx[j::HEAD]],
+                    p[self.idx[j::L_ANKLE]],
+                    p[self.idx[j::R_ANKLE]],
+                );
+                h[a] - l[a].min(r[a])
+            })
+            .filter(|x| x.is_finite())
+            .collect();
+        hs.sort_by(|x, y| x.total_cmp(y));
+        let h = hs
+            .get(((hs.len().max(1) - 1) as f64 * 0.9).round() as usize)
+            .copied()
+            .unwrap_or_else(|| median(s.iter().map(|[h, l, r]| h[a] - l[a].min(r[a])).collect()));
         Ok((a, h))
     }
 
