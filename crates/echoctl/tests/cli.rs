@@ -266,4 +266,17 @@ fn data_specs_train_and_evaluate_end_to_end() {
         let zv = r[0]["overall"]["jpe"][2].as_f64().unwrap();
         assert!((zv - 135.9).abs() < 0.5, "{zv}");
     }
+    // The repository's own real capture: a take that starts mid-squat still loads.
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/cmu");
+    let json = dir.join("squats.json");
+    ok(&echoctl(&[
+        "eval",
+        "--bvh-pair",
+        data.join("22_14.bvh").to_str().unwrap(),
+        data.join("23_14.bvh").to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]));
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert_eq!(r[0]["overall"]["windows"], 59);
 }
