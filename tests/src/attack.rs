@@ -128,36 +128,19 @@ fn map_numbers(v: &mut Value, f: &dyn Fn(f64) -> f64) {
     }
 }
 
-/// The first array of numbers under `v` (outside the header).
-fn first_number_array(v: &mut Value) -> Option<&mut Vec<Value>> {
+/// The first non-empty array under `v` (outside the header) whose elements all pass `is`:
+/// numbers (a position vector) or strings (joint names).
+fn first_array(v: &mut Value, is: fn(&Value) -> bool) -> Option<&mut Vec<Value>> {
     match v {
         Value::Object(m) => m
             .iter_mut()
             .filter(|(k, _)| k.as_str() != "header")
-            .find_map(|(_, x)| first_number_array(x)),
+            .find_map(|(_, x)| first_array(x, is)),
         Value::Array(a) => {
-            if !a.is_empty() && a.iter().all(Value::is_number) {
+            if !a.is_empty() && a.iter().all(is) {
                 Some(a)
             } else {
-                a.iter_mut().find_map(first_number_array)
-            }
-        }
-        _ => None,
-    }
-}
-
-/// The first array of strings under `v` (joint names).
-fn first_name_array(v: &mut Value) -> Option<&mut Vec<Value>> {
-    match v {
-        Value::Object(m) => m
-            .iter_mut()
-            .filter(|(k, _)| k.as_str() != "header")
-            .find_map(|(_, x)| first_name_array(x)),
-        Value::Array(a) => {
-            if !a.is_empty() && a.iter().all(Value::is_string) {
-                Some(a)
-            } else {
-                a.iter_mut().find_map(first_name_array)
+                a.iter_mut().find_map(|x| first_array(x, is))
             }
         }
         _ => None,
@@ -281,7 +264,7 @@ pub fn mutations(t: &Value, round: u64, impersonate: bool) -> Vec<(&'static str,
     // Wrong size: one number missing.
     let mut v = t.clone();
     fresh(&mut v, "size");
-    if let Some(a) = first_number_array(&mut v) {
+    if let Some(a) = first_array(&mut v, Value::is_number) {
         a.pop();
         out.push(("wrong_size", bytes(&v)));
     }
@@ -289,7 +272,7 @@ pub fn mutations(t: &Value, round: u64, impersonate: bool) -> Vec<(&'static str,
     // Unknown joint.
     let mut v = t.clone();
     fresh(&mut v, "joint");
-    if let Some(a) = first_name_array(&mut v) {
+    if let Some(a) = first_array(&mut v, Value::is_string) {
         a[0] = Value::String("warp_drive_joint".into());
         out.push(("unknown_joint", bytes(&v)));
     }

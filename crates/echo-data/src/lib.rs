@@ -15,7 +15,7 @@ pub mod stats;
 
 use std::path::PathBuf;
 
-use echo_eval::window::{windows as cut, Window};
+use echo_eval::window::Window;
 use echo_motion::synth::Split;
 use rand::{Rng, SeedableRng};
 
@@ -86,7 +86,7 @@ pub fn windows(per_item: &[(Item, Vec<Capture>)], cut: &Cut) -> Vec<Window> {
                     let stride = if c.real { cut.real_stride } else { cut.stride };
                     augment::expand(&c.clip, c.real, &cut.augment)
                         .into_iter()
-                        .flat_map(move |clip| cut_windows(&clip, stride))
+                        .flat_map(move |clip| echo_eval::window::windows(&clip, stride))
                 })
                 .collect();
             (it.weight, w)
@@ -111,10 +111,6 @@ pub fn windows(per_item: &[(Item, Vec<Capture>)], cut: &Cut) -> Vec<Window> {
         out.extend((0..n).map(|_| w[rng.random_range(0..w.len())].clone()));
     }
     out
-}
-
-fn cut_windows(clip: &echo_motion::synth::Clip, stride: usize) -> Vec<Window> {
-    cut(clip, stride)
 }
 
 #[cfg(test)]

@@ -14,7 +14,6 @@ use std::path::{Path, PathBuf};
 
 use echo_motion::capture::{load_bvh_pair, CleanReport, PairOptions};
 use echo_motion::synth::{generate_split, generate_walking_split, Clip, Split};
-use echo_msgs::Interaction;
 
 use crate::spec::Source;
 use crate::DataError;
@@ -236,11 +235,6 @@ fn read_json<T: serde::de::DeserializeOwned>(p: &Path) -> Result<Option<T>, Data
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
         Err(e) => Err(DataError::Io(p.to_path_buf(), e)),
     }
-}
-
-/// Interaction type of a capture (for tables).
-pub fn kind(c: &Capture) -> Interaction {
-    c.clip.params.kind
 }
 
 #[cfg(test)]

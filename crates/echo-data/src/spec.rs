@@ -167,7 +167,8 @@ impl Spec {
 /// so a comma there would be ambiguous: prompts may not contain commas followed by a source
 /// name; a comma followed by a known source keyword always starts a new item).
 fn split_items(text: &str) -> Vec<String> {
-    const KEYS: [&str; 5] = ["synthetic", "intergen:", "bvh:", "cmu:", "echo:"]; // "synthetic" covers "synthetic-walk"
+    // "synthetic" also starts "synthetic-walk".
+    const KEYS: [&str; 5] = ["synthetic", "intergen:", "bvh:", "cmu:", "echo:"];
     let mut out = vec![String::new()];
     let mut rest = text;
     while let Some(i) = rest.find(',') {

@@ -68,8 +68,8 @@ use echo_msgs::Interaction;
 use nalgebra::{Matrix3, Vector3};
 
 use crate::bvh::{self, Bvh, BvhError, Channel, JointMap};
-use crate::skeleton::{j, Body, JOINT_NAMES, NUM_JOINTS};
-use crate::synth::{Clip, ClipParams, ParamRanges, FPS};
+use crate::skeleton::{j, JOINT_NAMES, NUM_JOINTS};
+use crate::synth::{Clip, FPS};
 
 /// Fewest output frames: one forecasting window, 8 observed + 23 predicted frames at 15 Hz
 /// (2.07 s), is 62 frames at 30 Hz.
@@ -838,25 +838,13 @@ pub fn clean_pair(
         w[0].report.height_m, w[0].name, w[1].report.height_m, w[1].name
     ));
 
-    let mut params = ClipParams::sample(kind, &ParamRanges::train(), 0);
-    params.heights = [w[0].report.height_m, w[1].report.height_m];
-    let frames = (0..n)
-        .map(|f| {
-            [
-                people[0][f].map(|v| [v.x as f32, v.y as f32, v.z as f32]),
-                people[1][f].map(|v| [v.x as f32, v.y as f32, v.z as f32]),
-            ]
-        })
-        .collect();
-    let clip = Clip {
-        bodies: [
-            Body::with_height(params.heights[0]),
-            Body::with_height(params.heights[1]),
-        ],
-        params,
+    let clip = Clip::recorded(
+        kind,
         texts,
-        frames,
-    };
+        [w[0].report.height_m, w[1].report.height_m],
+        &people[0][..n],
+        &people[1][..n],
+    );
     let [ra, rb] = w.map(|x| x.report);
     Ok((
         clip,

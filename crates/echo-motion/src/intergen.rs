@@ -20,8 +20,8 @@ use npyz::WriterBuilder;
 
 use crate::dataset::DatasetError;
 use crate::rotation::to_6d;
-use crate::skeleton::{inverse, Body, NUM_JOINTS};
-use crate::synth::{Clip, ClipParams, ParamRanges};
+use crate::skeleton::{inverse, NUM_JOINTS};
+use crate::synth::Clip;
 
 /// Columns per frame.
 pub const COLUMNS: usize = 492;
@@ -200,29 +200,10 @@ pub fn load(root: &Path, split: &str) -> Result<Vec<(String, Clip)>, DatasetErro
         let kind = kind_from_text(&texts);
         let height =
             |p: &[Vector3<f64>; NUM_JOINTS]| (p[15].z - p[7].z.min(p[8].z)).max(0.5) + 0.16;
-        let mut params = ClipParams::sample(kind, &ParamRanges::train(), 0);
-        params.heights = [height(&p1[0]), height(&p2[0])];
-        let frames = p1
-            .iter()
-            .zip(&p2)
-            .map(|(a, b)| {
-                [
-                    a.map(|v| [v.x as f32, v.y as f32, v.z as f32]),
-                    b.map(|v| [v.x as f32, v.y as f32, v.z as f32]),
-                ]
-            })
-            .collect();
+        let heights = [height(&p1[0]), height(&p2[0])];
         out.push((
             id.to_string(),
-            Clip {
-                bodies: [
-                    Body::with_height(params.heights[0]),
-                    Body::with_height(params.heights[1]),
-                ],
-                params,
-                texts,
-                frames,
-            },
+            Clip::recorded(kind, texts, heights, &p1, &p2),
         ));
     }
     Ok(out)

@@ -211,6 +211,26 @@ impl Clip {
         self.frames.len() as f64 / FPS
     }
 
+    /// A recorded interaction (InterGen, BVH captures): both people's joints per frame at
+    /// [`FPS`], their heights; the other parameters are the training defaults of `kind`.
+    pub fn recorded(
+        kind: Interaction,
+        texts: Vec<String>,
+        heights: [f64; 2],
+        a: &[[Vector3<f64>; NUM_JOINTS]],
+        b: &[[Vector3<f64>; NUM_JOINTS]],
+    ) -> Clip {
+        let mut params = ClipParams::sample(kind, &ParamRanges::train(), 0);
+        params.heights = heights;
+        let f32s = |p: &[Vector3<f64>; NUM_JOINTS]| p.map(|v| [v.x as f32, v.y as f32, v.z as f32]);
+        Clip {
+            bodies: heights.map(Body::with_height),
+            params,
+            texts,
+            frames: a.iter().zip(b).map(|(x, y)| [f32s(x), f32s(y)]).collect(),
+        }
+    }
+
     /// Joints of person `p` at frame `f` as vectors.
     pub fn joints(&self, f: usize, p: usize) -> [Vector3<f64>; NUM_JOINTS] {
         self.frames[f][p].map(|x| Vector3::new(x[0] as f64, x[1] as f64, x[2] as f64))

@@ -9,9 +9,7 @@ mod common;
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
-use candle_core::{DType, Device, Tensor};
-use candle_nn::{VarBuilder, VarMap};
-use echo_models::model::Forecaster;
+use candle_core::Device;
 use echo_models::CheckpointMeta;
 use echo_onnx::export::{build, build_checkpoint};
 use echo_onnx::proto::ModelProto;
@@ -120,18 +118,9 @@ fn shipped_checkpoint_graph_is_well_formed() {
 
 #[test]
 fn every_variant_graph_is_well_formed() {
-    let dev = Device::Cpu;
     let variants = common::variants();
     for cfg in &variants {
-        let vm = VarMap::new();
-        Forecaster::new(cfg.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev)).unwrap();
-        let weights: HashMap<String, Tensor> = vm
-            .data()
-            .lock()
-            .unwrap()
-            .iter()
-            .map(|(k, v)| (k.clone(), v.as_tensor().clone()))
-            .collect();
+        let weights = common::random_weights(cfg);
         assert_well_formed(&build(weights, cfg).unwrap(), &format!("{cfg:?}"));
     }
 }

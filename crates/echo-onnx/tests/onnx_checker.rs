@@ -4,13 +4,9 @@
 
 mod common;
 
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use candle_core::{DType, Device, Tensor};
-use candle_nn::{VarBuilder, VarMap};
-use echo_models::model::Forecaster;
 use echo_onnx::export::build;
 use prost::Message;
 
@@ -91,19 +87,7 @@ fn onnx_checker_accepts_every_variant() {
     let scratch = tempfile::tempdir().unwrap();
     let mut files = vec![];
     for (i, cfg) in variants.iter().enumerate() {
-        let vm = VarMap::new();
-        Forecaster::new(
-            cfg.clone(),
-            VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu),
-        )
-        .unwrap();
-        let weights: HashMap<String, Tensor> = vm
-            .data()
-            .lock()
-            .unwrap()
-            .iter()
-            .map(|(k, v)| (k.clone(), v.as_tensor().clone()))
-            .collect();
+        let weights = common::random_weights(cfg);
         let path = scratch.path().join(format!("v{i}.onnx"));
         std::fs::write(&path, build(weights, cfg).unwrap().encode_to_vec()).unwrap();
         files.push(path);

@@ -131,18 +131,7 @@ fn wrong_sizes_are_errors() {
         heads: 2,
         ..Default::default()
     };
-    let vm = VarMap::new();
-    let _ = Forecaster::new(
-        cfg.clone(),
-        VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu),
-    );
-    let weights: HashMap<String, Tensor> = vm
-        .data()
-        .lock()
-        .unwrap()
-        .iter()
-        .map(|(k, v)| (k.clone(), v.as_tensor().clone()))
-        .collect();
+    let weights = common::random_weights(&cfg);
     let scratch = tempfile::tempdir().unwrap();
     let path = scratch.path().join("sizes.onnx");
     std::fs::write(&path, build(weights, &cfg).unwrap().encode_to_vec()).unwrap();

@@ -139,11 +139,6 @@ impl Loop {
         }
     }
 
-    /// The supervisor.
-    pub fn supervisor(&self) -> &Supervisor {
-        &self.sup
-    }
-
     /// The state reported last.
     pub fn state(&self) -> Option<SafetyState> {
         self.last_state

@@ -1,6 +1,25 @@
-//! What the export tests share: every architecture variant the exporter must cover.
+//! What the export tests share: every architecture variant the exporter must cover, and their
+//! untrained weights.
 
-use echo_models::model::ForecasterConfig;
+use std::collections::HashMap;
+
+use candle_core::{DType, Device, Tensor};
+use candle_nn::{VarBuilder, VarMap};
+use echo_models::model::{Forecaster, ForecasterConfig};
+
+/// The freshly initialised weights of a forecaster with `cfg`, by name.
+pub fn random_weights(cfg: &ForecasterConfig) -> HashMap<String, Tensor> {
+    let vm = VarMap::new();
+    Forecaster::new(
+        cfg.clone(),
+        VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu),
+    )
+    .expect("a forecaster of this configuration");
+    let data = vm.data().lock().expect("weights");
+    data.iter()
+        .map(|(k, v)| (k.clone(), v.as_tensor().clone()))
+        .collect()
+}
 
 /// Small models of every switch the exporter handles: text token or not, DCT, sequential
 /// refinement, no displacement, no temporal MLP, no social rounds, the velocity prior, and a

@@ -22,9 +22,10 @@ pub struct Args {
     /// Predictor: zero-velocity, constant-velocity or all.
     #[arg(long, default_value = "all")]
     pub baseline: String,
-    /// Window stride, frames at 15 Hz.
-    #[arg(long, default_value_t = 8)]
-    pub stride: usize,
+    /// Window stride, frames at 15 Hz (default: 8 for generated clips, 1 for real captures,
+    /// which are few).
+    #[arg(long)]
+    pub stride: Option<usize>,
     /// Also score trained forecaster checkpoints (stems of .safetensors/.json; repeatable;
     /// named by the file stem in the tables).
     #[arg(long)]
@@ -91,9 +92,7 @@ fn spec_windows(args: &Args) -> Result<Option<(Vec<echo_eval::window::Window>, S
         echo_motion::synth::Split::Test,
         args.clips_per_kind * KINDS.len() as u64 * 20,
     )?;
-    // Real captures are few: every window (stride 1) unless a stride was asked for.
-    let stride_given = std::env::args().any(|a| a == "--stride" || a.starts_with("--stride="));
-    let real_stride = if stride_given { args.stride } else { 1 };
+    let real_stride = args.stride.unwrap_or(1);
     let per: Vec<_> = per
         .into_iter()
         .map(|(mut it, c)| {
@@ -104,7 +103,7 @@ fn spec_windows(args: &Args) -> Result<Option<(Vec<echo_eval::window::Window>, S
     let w = echo_data::windows(
         &per,
         &echo_data::Cut {
-            stride: args.stride,
+            stride: args.stride.unwrap_or(8),
             real_stride,
             augment: echo_data::augment::Augment::NONE,
             seed: 0,
@@ -139,7 +138,7 @@ fn hri(args: &Args, split: Split) -> Result<()> {
     let body = echo_robot::collision::RobotBody::tiago(&model)?;
     let r = echo_retarget::Retargeter::load(&args.with_retargeter, model.clone())?;
     let n = args.clips_per_kind * KINDS.len() as u64;
-    let ws = super::train::hri_windows(split, n, args.stride, &r)?;
+    let ws = super::train::hri_windows(split, n, args.stride.unwrap_or(8), &r)?;
     let refs: Vec<&echo_hri::data::HriWindow> = ws.iter().collect();
     let mut reports = vec![
         score(
@@ -364,7 +363,10 @@ pub fn run(args: Args) -> Result<()> {
             let pb = progress(n, "generating");
             let clips = generate_split(split, 0..n, 2, &|| pb.inc(1));
             pb.finish_and_clear();
-            let w: Vec<_> = clips.iter().flat_map(|c| windows(c, args.stride)).collect();
+            let w: Vec<_> = clips
+                .iter()
+                .flat_map(|c| windows(c, args.stride.unwrap_or(8)))
+                .collect();
             (w, format!("split {} — {} clips", args.split, clips.len()))
         }
     };
