@@ -2,6 +2,7 @@
 //! from interactions, a [`Predictor`] trait that every forecaster implements, the zero- and
 //! constant-velocity baselines, and a harness that prints the paper-style table.
 
+pub mod behaviour;
 pub mod harness;
 pub mod metrics;
 pub mod render;

@@ -1,5 +1,8 @@
 //! Online forecasting for the forecaster service, independent of the network:
 //!
+//! - [`contact`]: contact interactions (handshake, handover, high five) — a learned plan that
+//!   brings a gripper near the partner's forecast hand is refined by inverse kinematics so the
+//!   gripper reaches the hand;
 //! - [`failover`]: which of a primary and its standbys serves a robot (lowest live rank);
 //! - [`history`]: a per-robot ring buffer of both agents at the model rate; short gaps are
 //!   filled by interpolation (and counted), long gaps or reordered frames reset or are rejected;
@@ -8,6 +11,7 @@
 //! - [`server`]: agent pairing per robot, prompts (embedded once, cached), and one batched
 //!   forward pass for every robot whose history advanced, producing [`echo_msgs::Forecast`]s.
 
+pub mod contact;
 pub mod failover;
 pub mod history;
 pub mod proxy;

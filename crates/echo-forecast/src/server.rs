@@ -7,12 +7,15 @@ use std::time::Instant;
 use echo_models::features::{decode, encode_frames, FEATURES};
 use echo_models::Backend;
 use echo_motion::skeleton::NUM_JOINTS;
-use echo_msgs::{Forecast, Header, HumanSkeletons, HumanTrack, InteractionIntent, JointState};
+use echo_msgs::{
+    Forecast, Header, HumanSkeletons, HumanTrack, Interaction, InteractionIntent, JointState,
+};
 use echo_robot::RobotModel;
 use echo_text::SentenceEncoder;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
+use crate::contact::{ContactConfig, ContactReach};
 use crate::history::{
     Frame, History, HistoryError, Pair, Push, DEFAULT_MAX_AHEAD_MS, DEFAULT_RESYNC_AFTER_MS,
     ROBOT_STATE,
@@ -99,6 +102,8 @@ struct Slot {
     history: History,
     pair: Option<(u32, Other)>,
     prompt: String,
+    /// The announced interaction (contact refinement applies to contact ones).
+    interaction: Option<Interaction>,
     proxy: RobotProxy,
     /// The robot's measured joints (robot-agent models).
     robot_q: [f64; ROBOT_STATE],
@@ -123,6 +128,8 @@ pub struct Counters {
     pub batches: u64,
     /// Forecasts produced.
     pub forecasts: u64,
+    /// Robot plans refined to reach the partner's hand ([`crate::contact`]).
+    pub contact_refined: u64,
 }
 
 /// Per-robot histories and one backend shared by all robots.
@@ -132,6 +139,8 @@ pub struct ForecastServer {
     text: Option<SentenceEncoder>,
     model_name: String,
     robot_model: RobotModel,
+    /// Closes contact interactions' last centimetres (robot-agent models).
+    contact: Option<ContactReach>,
     /// The robot agent's joint names (feature order), once.
     robot_names: Vec<String>,
     slots: BTreeMap<String, Slot>,
@@ -172,7 +181,15 @@ impl ForecastServer {
             e.embed_one(&cfg.default_prompt)
                 .map_err(|e| anyhow::anyhow!("embedding the default prompt: {e}"))?;
         }
+        let contact = match agent_b == ROBOT_FEATURES {
+            true => Some(ContactReach::new(
+                robot_model.clone(),
+                ContactConfig::default(),
+            )?),
+            false => None,
+        };
         Ok(ForecastServer {
+            contact,
             cfg,
             backend,
             text,
@@ -226,6 +243,7 @@ impl ForecastServer {
             history: History::new(rate, 2 * obs, fill).with_guards(ahead, resync),
             pair: None,
             prompt,
+            interaction: None,
             proxy: RobotProxy::new(model.clone()),
             robot_q: {
                 let home = echo_robot::home_pose();
@@ -274,7 +292,9 @@ impl ForecastServer {
             e.embed_one(&text)
                 .map_err(|e| ServeError::Prompt(e.to_string()))?;
         }
-        self.slot(robot).prompt = text;
+        let slot = self.slot(robot);
+        slot.prompt = text;
+        slot.interaction = Some(intent.interaction);
         Ok(())
     }
 
@@ -412,7 +432,12 @@ impl ForecastServer {
             measured.push(slot.robot_q);
             canon.push(c);
             prompts.push(slot.prompt.clone());
-            robots.push((name.clone(), stamp, slot.pair.map(|p| p.0).unwrap_or(0)));
+            robots.push((
+                name.clone(),
+                stamp,
+                slot.pair.map(|p| p.0).unwrap_or(0),
+                slot.interaction,
+            ));
         }
         if robots.is_empty() {
             return vec![];
@@ -460,8 +485,10 @@ impl ForecastServer {
         let per = cfg.pred * (fa + fb);
         let mut res = Vec::with_capacity(b);
         let names = &self.robot_names;
-        for (i, ((robot, stamp, partner), c)) in robots.into_iter().zip(canon).enumerate() {
-            let human = (0..cfg.pred)
+        for (i, ((robot, stamp, partner, interaction), c)) in
+            robots.into_iter().zip(canon).enumerate()
+        {
+            let human: Vec<Vec<[f64; 3]>> = (0..cfg.pred)
                 .map(|k| {
                     let o = i * per + k * FEATURES;
                     decode(&c, &out[o..o + FEATURES])
@@ -474,7 +501,7 @@ impl ForecastServer {
             header.stamp_ns = stamp;
             // A robot-agent model forecasts the robot too: its plan starts at the measured
             // joints and follows the forecast frames at the model rate.
-            let plan = robot_agent.then(|| {
+            let mut plan = robot_agent.then(|| {
                 let mut points = vec![PlanPoint {
                     t: 0.0,
                     positions: measured[i].to_vec(),
@@ -498,6 +525,11 @@ impl ForecastServer {
                     points,
                 }
             });
+            if let (Some(p), Some(reach), Some(kind)) = (&mut plan, &self.contact, interaction) {
+                if reach.refine(p, &human, kind).is_some() {
+                    self.counters.contact_refined += 1;
+                }
+            }
             self.counters.forecasts += 1;
             res.push((
                 robot,

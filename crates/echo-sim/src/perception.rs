@@ -107,6 +107,24 @@ pub struct Recorded {
 }
 
 impl Recorded {
+    /// Frames at `fps` (an empty recording is one person standing at the origin).
+    pub fn new(fps: f64, frames: Vec<[Vector3<f64>; NUM_JOINTS]>) -> Recorded {
+        let frames = if frames.is_empty() {
+            vec![[Vector3::zeros(); NUM_JOINTS]]
+        } else {
+            frames
+        };
+        Recorded {
+            fps: if fps > 0.0 { fps } else { 30.0 },
+            frames,
+        }
+    }
+
+    /// The frames.
+    pub fn frames(&self) -> &[[Vector3<f64>; NUM_JOINTS]] {
+        &self.frames
+    }
+
     /// Length, seconds.
     pub fn duration(&self) -> f64 {
         self.frames.len().saturating_sub(1) as f64 / self.fps
@@ -216,9 +234,11 @@ impl MockPerception {
         &self.cfg
     }
 
-    /// Script time for wall time `t` since start (wraps when repeating).
+    /// Script time for wall time `t` since start (wraps when repeating; before the start the
+    /// people hold their first pose).
     pub fn script_time(&self, t: f64) -> f64 {
         let d = self.people[0].duration();
+        let t = t.max(0.0);
         if self.cfg.repeat && d > 0.0 {
             t.rem_euclid(d)
         } else {

@@ -336,6 +336,9 @@ pub mod edges {
     /// Robot histories dropped and restarted because every frame had been refused as reordered
     /// for `resync_after_ms` (counted under `dropped`).
     pub const RESYNC: &str = "humans_resync";
+    /// Robot plans refined to reach the partner's hand in a contact interaction (counted under
+    /// `published`).
+    pub const CONTACT: &str = "plan_contact_refined";
 }
 
 fn handle(server: &mut ForecastServer, stats: &Stats, input: Input) {
@@ -397,7 +400,12 @@ where
                 Err(_) => break,
             }
         }
-        for (robot, res) in server.run_batch() {
+        let refined = server.counters().contact_refined;
+        let batch = server.run_batch();
+        for _ in refined..server.counters().contact_refined {
+            stats.published(edges::CONTACT);
+        }
+        for (robot, res) in batch {
             match res {
                 Ok(f) => {
                     stats.latency_ms(f.inference_ms);

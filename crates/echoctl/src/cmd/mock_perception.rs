@@ -1,13 +1,15 @@
 //! `echoctl mock-perception`: a scripted partner (and optional bystander) seen by the head
 //! camera, published as pose-estimator keypoints at 15 Hz.
 
+use std::path::PathBuf;
 use std::time::Duration;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use echo_bus::shutdown::Shutdown;
 use echo_bus::{topics, Bus, BusArgs};
 use echo_msgs::{frames, now_ns, JointState};
 use echo_robot::RobotModel;
+use echo_sim::mission::Mission;
 use echo_sim::perception::{MockFormat, MockPerception, MockPerceptionConfig};
 
 /// Service name.
@@ -57,6 +59,54 @@ pub struct Args {
     /// robot plays B where B stood when the two were closest: the partner walks up to the robot).
     #[arg(long)]
     pub robot_plays_b: bool,
+    /// Play a human–robot mission's partner (`echo_sim::mission`: mission, wave, handshake,
+    /// handover, high-five, walk-up); the robot plays the other person.
+    #[arg(long, conflicts_with = "clip")]
+    pub scenario: Option<String>,
+    /// Replay person A of a real two-person capture (two BVH files, one clock) as the partner;
+    /// the robot plays person B.
+    #[arg(long, num_args = 2, value_names = ["A_BVH", "B_BVH"], conflicts_with_all = ["clip", "scenario"])]
+    pub capture: Option<Vec<PathBuf>>,
+    /// With --capture: the capture's description (its interaction type is read from it).
+    #[arg(
+        long,
+        default_value = "Two people walk up to each other and shake hands."
+    )]
+    pub capture_prompt: String,
+}
+
+/// The mission the partner performs: a named scenario, or person A of a real capture.
+pub fn mission_of(
+    scenario: Option<&str>,
+    capture: Option<&[PathBuf]>,
+    capture_prompt: &str,
+) -> Result<Option<Mission>> {
+    if let Some(files) = capture {
+        let [a, b] = files else {
+            anyhow::bail!("--capture takes two BVH files, A then B");
+        };
+        let texts = vec![capture_prompt.to_string()];
+        let kind = echo_motion::intergen::kind_from_text(&texts);
+        let (clip, _) = echo_motion::capture::load_bvh_pair(
+            a,
+            b,
+            &echo_motion::capture::PairOptions::default(),
+            texts,
+            kind,
+        )
+        .with_context(|| format!("loading the capture {} + {}", a.display(), b.display()))?;
+        let name = format!(
+            "capture {}",
+            a.file_stem().unwrap_or_default().to_string_lossy()
+        );
+        return Ok(Some(Mission::from_clips(
+            &name,
+            &[(clip, format!("{} + {}", a.display(), b.display()))],
+        )));
+    }
+    scenario
+        .map(|s| Mission::named(s).map_err(|e| anyhow::anyhow!(e)))
+        .transpose()
 }
 
 /// The generated clip named by `<split>:<index>`.
@@ -107,7 +157,16 @@ pub async fn serve(args: Args, mut stop: Shutdown) -> Result<()> {
     let _alive = bus.declare_alive().await?;
     let reporter = bus.spawn_status_reporter(Duration::from_secs(1), stop.clone());
     let model = RobotModel::tiago_dual();
+    let mission = mission_of(
+        args.scenario.as_deref(),
+        args.capture.as_deref(),
+        &args.capture_prompt,
+    )?;
     let mut mock = match &args.clip {
+        _ if mission.is_some() => MockPerception::with_people(
+            cfg.clone(),
+            mission.as_ref().map(Mission::actors).unwrap_or_default(),
+        ),
         Some(spec) if args.robot_plays_b => MockPerception::with_people(
             cfg.clone(),
             echo_sim::perception::clip_partner_for_robot(&clip_of(spec)?),

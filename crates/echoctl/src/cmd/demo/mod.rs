@@ -1,8 +1,17 @@
 //! `echoctl demo`: the whole pipeline on loopback — every service a separate OS process (or a
 //! task with `--single-process`), each with its own Zenoh peer session — driven by the mock
-//! perception's scripted interaction, with a live status line and a final summary.
+//! perception's scripted partner, with a live status line and a final summary.
+//!
+//! By default the robot meets a person: the HRI forecaster (`models/hri`) plans its motion,
+//! the partner performs a mission (walk up and shake hands, hand an object over, wave
+//! goodbye; `--scenario` picks one interaction, `--capture` replays a real capture), the demo
+//! announces each interaction on `prompt`, and the summary says per interaction what the robot
+//! did ([`mission`]). `--scenario watch` runs the human–human forecaster on the scripted partner
+//! (the robot only watches), `--scenario imitation` the retargeter's mirroring.
 //!
 //! Services whose binaries are not installed next to `echoctl` are absent from the demo.
+
+mod mission;
 
 use std::collections::BTreeMap;
 use std::io::{IsTerminal, Write};
@@ -26,9 +35,28 @@ pub struct Args {
     /// Robot id.
     #[arg(long, default_value = "tiago")]
     pub robot: String,
-    /// Run for this many seconds (the scripted interaction lasts 13 s and repeats).
-    #[arg(long, default_value_t = 20.0)]
-    pub duration: f64,
+    /// What happens: a human–robot mission (mission, wave, handshake, handover, high-five,
+    /// walk-up), `watch` (the human–human forecaster watches the scripted partner; the robot
+    /// holds) or `imitation` (the robot mirrors the partner through the retargeter).
+    #[arg(long, default_value = "mission")]
+    pub scenario: String,
+    /// Replay person A of a real two-person capture as the partner (two BVH files, one clock);
+    /// the robot plays person B.
+    #[arg(long, num_args = 2, value_names = ["A_BVH", "B_BVH"])]
+    pub capture: Option<Vec<PathBuf>>,
+    /// With --capture: its description (the interaction type is read from it).
+    #[arg(
+        long,
+        default_value = "Two people walk up to each other and shake hands."
+    )]
+    pub capture_prompt: String,
+    /// The HRI checkpoint the forecaster runs in the human–robot scenarios.
+    #[arg(long, default_value = "models/hri")]
+    pub hri: PathBuf,
+    /// Run for this many seconds (default: one pass of the mission, or 20 s for watch and
+    /// imitation; the partner's script repeats).
+    #[arg(long)]
+    pub duration: Option<f64>,
     /// Run every service as a task in this process (still one Zenoh session each, over loopback).
     #[arg(long)]
     pub single_process: bool,
@@ -38,18 +66,6 @@ pub struct Args {
     /// Add a bystander to the scene.
     #[arg(long)]
     pub bystander: bool,
-    /// Imitation mode: the robot mirrors the partner through the retargeter (the prompt's
-    /// mode is set to imitation every second).
-    #[arg(long)]
-    pub imitate: bool,
-    /// Human–robot mode: the forecaster runs this HRI checkpoint (e.g. models/hri) and plans
-    /// for the robot, and the partner offers a handshake of the test split to the robot.
-    #[arg(long)]
-    pub hri: Option<PathBuf>,
-    /// With --hri: the interaction the partner performs (`<split>:<index>`; test:0 is a
-    /// handshake, test:1 a wave).
-    #[arg(long, default_value = "test:0")]
-    pub hri_clip: String,
     /// Directory for the services' logs (default: a fresh temporary directory).
     #[arg(long)]
     pub log_dir: Option<PathBuf>,
@@ -219,89 +235,8 @@ struct Observed {
     human_frames: u64,
     safety: Option<String>,
     forecasts: ForecastScore,
-    reach: Reach,
-    started: Option<Instant>,
-    /// Human–robot mode: the reach of the robot's grippers is reported.
-    hri: bool,
-    /// Human–robot mode: what the retargeted reference alone reaches.
-    reference: Option<echo_retarget::hri::Reach>,
-}
-
-/// How close the robot's grippers come to the partner's hands (HRI mode).
-struct Reach {
-    model: echo_robot::RobotModel,
-    body: Option<echo_robot::collision::RobotBody>,
-    q: Option<echo_robot::JointValues>,
-    best: echo_retarget::hri::Reach,
-    at_s: f64,
-}
-
-impl Default for Reach {
-    fn default() -> Self {
-        let model = echo_robot::RobotModel::tiago_dual();
-        Reach {
-            body: echo_robot::collision::RobotBody::tiago(&model).ok(),
-            model,
-            q: None,
-            best: echo_retarget::hri::Reach::NONE,
-            at_s: 0.0,
-        }
-    }
-}
-
-impl Reach {
-    fn on_state(&mut self, v: &serde_json::Value) {
-        let (Some(names), Some(pos)) = (v.get("name"), v.get("position")) else {
-            return;
-        };
-        let (Ok(names), Ok(pos)) = (
-            serde_json::from_value::<Vec<String>>(names.clone()),
-            serde_json::from_value::<Vec<f64>>(pos.clone()),
-        ) else {
-            return;
-        };
-        let m = &self.model;
-        self.q = m
-            .values_from(
-                names
-                    .iter()
-                    .zip(&pos)
-                    .filter(|(n, _)| m.joint_index(n).is_some())
-                    .map(|(n, p)| (n.as_str(), *p)),
-            )
-            .ok();
-    }
-
-    fn on_humans(&mut self, v: &serde_json::Value, t: f64) {
-        let (Some(q), Some(body), Some(pid)) = (
-            &self.q,
-            &self.body,
-            v.get("partner_id").and_then(|x| x.as_u64()),
-        ) else {
-            return;
-        };
-        let Some(j) = joints_of(v, pid) else { return };
-        let j: Vec<nalgebra::Vector3<f64>> = j.iter().map(|p| (*p).into()).collect();
-        let root = nalgebra::Isometry3::identity();
-        if let Ok(r) = echo_retarget::hri::gripper_reach(&self.model, body, q, &root, &j) {
-            if r.grasp_to_wrist_m < self.best.grasp_to_wrist_m {
-                self.at_s = t;
-            }
-            self.best = self.best.min(r);
-        }
-    }
-}
-
-/// What the retargeted reference alone would reach in the demo's scene (person B's motion
-/// retargeted by `<models>/retargeter` and played from where the robot stands).
-fn reference_reach(clip: &str, models: &Path) -> Result<echo_retarget::hri::Reach> {
-    let model = echo_robot::RobotModel::tiago_dual();
-    let body = echo_robot::collision::RobotBody::tiago(&model)?;
-    let clip = mock_perception::clip_of(clip)?;
-    let r = echo_retarget::retargeter::Retargeter::load(&models.join("retargeter"), model.clone())?;
-    let hri = echo_retarget::hri::convert(&clip, &r)?;
-    let base = echo_sim::perception::robot_base_in_clip(&clip);
-    echo_retarget::hri::reference_reach(&hri, &r, &model, &body, &base)
+    /// Human–robot scenarios: what the robot did, per interaction.
+    mission: Option<mission::MissionObserver>,
 }
 
 enum Running {
@@ -363,13 +298,27 @@ pub async fn run(args: Args) -> Result<()> {
     }
     println!("logs: {}", log_dir.display());
 
+    let setup = Setup::from_args(&args)?;
+    if let Some(m) = &setup.mission {
+        println!(
+            "scenario '{}' ({:.0} s): {}",
+            m.name,
+            m.duration(),
+            m.segments
+                .iter()
+                .map(|s| format!("{:?} at {:.1} s", s.interaction, s.start_s))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     let mut running: Vec<(&str, Running)> = vec![];
     for (i, (name, launch)) in available.iter().enumerate() {
         let net = &mesh[i + 1];
+        let flags = service_flags(name, &args, &setup);
         let r = if args.single_process {
-            start_task(name, net, &args)?
+            start_task(name, net, flags)?
         } else {
-            start_process(&exe_dir, name, *launch, net, &args, &log_dir)?
+            start_process(&exe_dir, name, *launch, net, flags, &log_dir)?
         };
         running.push((name, r));
     }
@@ -388,36 +337,29 @@ pub async fn run(args: Args) -> Result<()> {
 
     // Count from now: the rates in the summary are over the demo's own duration.
     let started = Instant::now();
-    // The retargeter shipped beside the HRI checkpoint gives the reference to compare with.
-    let reference = args.hri.as_ref().and_then(|m| {
-        let dir = m.parent().unwrap_or(Path::new("."));
-        reference_reach(&args.hri_clip, dir)
-            .map_err(|e| tracing::warn!("no reference reach: {e:#}"))
-            .ok()
-    });
+    let mission_obs = setup
+        .mission
+        .clone()
+        .map(|m| mission::MissionObserver::new(m, setup.t0_ns));
     *observed.lock().unwrap_or_else(|e| e.into_inner()) = Observed {
-        started: Some(started),
-        hri: args.hri.is_some(),
-        reference,
+        mission: mission_obs,
         ..Observed::default()
     };
     let mut stop = shutdown::on_signals();
     let prompt = bus.publisher(&topics::prompt(&robot)).await?;
-    let hri_intent = match &args.hri {
-        Some(_) => {
-            let clip = mock_perception::clip_of(&args.hri_clip)?;
-            Some((
-                clip.texts.first().cloned().unwrap_or_default(),
-                clip.params.kind,
-            ))
+    // One pass of the mission (from its start, which may lie ahead), or 20 s.
+    let duration = args.duration.unwrap_or_else(|| match &setup.mission {
+        Some(m) => {
+            let ahead = (setup.t0_ns as f64 - now_ns() as f64) / 1e9;
+            ahead.max(0.0) + m.duration() + 1.0
         }
-        None => None,
-    };
+        None => 20.0,
+    });
     if failure.is_none() {
         let mut tick = tokio::time::interval(Duration::from_millis(500));
         let tty = std::io::stdout().is_terminal();
         let mut ticks = 0u64;
-        while started.elapsed().as_secs_f64() < args.duration {
+        while started.elapsed().as_secs_f64() < duration {
             tokio::select! {
                 _ = tick.tick() => {}
                 _ = stop.wait() => break,
@@ -434,7 +376,7 @@ pub async fn run(args: Args) -> Result<()> {
                 ));
                 break;
             }
-            if args.imitate && ticks.is_multiple_of(2) {
+            if setup.imitation && ticks.is_multiple_of(2) {
                 prompt
                     .put(InteractionIntent {
                         header: Header::new(robot.as_str(), "", ""),
@@ -444,17 +386,22 @@ pub async fn run(args: Args) -> Result<()> {
                     })
                     .await?;
             }
-            // HRI: the interaction is announced (its description conditions the forecaster,
-            // its type lets the safety service allow gripper–hand contact at low speed).
-            if let (Some((text, kind)), true) = (&hri_intent, ticks.is_multiple_of(2)) {
-                prompt
-                    .put(InteractionIntent {
-                        header: Header::new(robot.as_str(), "", ""),
-                        text: text.clone(),
-                        interaction: *kind,
-                        mode: ControlMode::Forecast,
-                    })
-                    .await?;
+            // Human–robot: the current interaction is announced (its description conditions
+            // the forecaster, its type lets the safety service allow gripper–hand contact at
+            // low speed).
+            if let (Some(m), true) = (&setup.mission, ticks.is_multiple_of(2)) {
+                let t = (now_ns() as f64 - setup.t0_ns as f64) / 1e9;
+                let t = t.max(0.0).rem_euclid(m.duration().max(1e-3));
+                if let Some(seg) = m.segment_at(t) {
+                    prompt
+                        .put(InteractionIntent {
+                            header: Header::new(robot.as_str(), "", ""),
+                            text: seg.text.clone(),
+                            interaction: seg.interaction,
+                            mode: ControlMode::Forecast,
+                        })
+                        .await?;
+                }
             }
             let line = status_line(
                 started.elapsed().as_secs_f64(),
@@ -501,7 +448,7 @@ fn start_process(
     name: &str,
     launch: Launch,
     net: &BusArgs,
-    args: &Args,
+    flags: Vec<String>,
     log_dir: &Path,
 ) -> Result<Running> {
     let (program, mut argv) = match launch {
@@ -509,7 +456,7 @@ fn start_process(
         Launch::Binary => (exe_dir.join(name), vec![]),
     };
     argv.extend(net.to_cli());
-    argv.extend(service_flags(name, args));
+    argv.extend(flags);
     let log = std::fs::File::create(log_dir.join(format!("{name}.log")))?;
     let child = tokio::process::Command::new(&program)
         .args(&argv)
@@ -525,26 +472,69 @@ fn start_process(
     Ok(Running::Process(child))
 }
 
-fn service_flags(name: &str, args: &Args) -> Vec<String> {
+/// What the demo plays, decided once before the services start.
+struct Setup {
+    /// Human–robot scenarios: the partner's mission (the HRI forecaster plans the robot).
+    mission: Option<echo_sim::mission::Mission>,
+    /// The robot mirrors the partner (retargeter plans).
+    imitation: bool,
+    /// Mission time 0 (ns since the UNIX epoch): a few seconds ahead, so the services are up
+    /// before the partner moves.
+    t0_ns: u64,
+}
+
+/// Seconds between launching the services and the partner's first move.
+const LEAD_IN_S: f64 = 4.0;
+
+impl Setup {
+    fn from_args(args: &Args) -> Result<Setup> {
+        let t0_ns = now_ns() + (LEAD_IN_S * 1e9) as u64;
+        let (mission, imitation) = match (args.scenario.as_str(), &args.capture) {
+            (_, Some(files)) => (
+                mock_perception::mission_of(None, Some(files), &args.capture_prompt)?,
+                false,
+            ),
+            ("watch", None) => (None, false),
+            ("imitation", None) => (None, true),
+            (s, None) => (
+                Some(
+                    echo_sim::mission::Mission::named(s)
+                        .map_err(|e| anyhow!("--scenario: {e}, watch or imitation"))?,
+                ),
+                false,
+            ),
+        };
+        Ok(Setup {
+            mission,
+            imitation,
+            t0_ns,
+        })
+    }
+}
+
+fn service_flags(name: &str, args: &Args, setup: &Setup) -> Vec<String> {
     match name {
         "mock-perception" => {
             let mut v = vec!["--format".to_string(), args.format.clone()];
             if args.bystander {
                 v.push("--bystander".into());
             }
-            if args.hri.is_some() {
-                v.extend([
-                    "--clip".into(),
-                    args.hri_clip.clone(),
-                    "--robot-plays-b".into(),
-                ]);
+            if setup.mission.is_some() {
+                match &args.capture {
+                    Some(files) => {
+                        v.push("--capture".into());
+                        v.extend(files.iter().map(|f| f.display().to_string()));
+                        v.extend(["--capture-prompt".into(), args.capture_prompt.clone()]);
+                    }
+                    None => v.extend(["--scenario".into(), args.scenario.clone()]),
+                }
+                v.extend(["--t0-ns".into(), setup.t0_ns.to_string()]);
             }
             v
         }
-        "forecaster" => match &args.hri {
-            Some(m) => vec!["--model".into(), m.display().to_string()],
-            None => vec![],
-        },
+        "forecaster" if setup.mission.is_some() => {
+            vec!["--model".into(), args.hri.display().to_string()]
+        }
         "mock-robot" => vec!["--head-sweep".into(), "0.15".into()],
         // The robot interface is required: without it the safety service holds the robot.
         "safety" => vec!["--require".into(), "mock-robot".into()],
@@ -552,7 +542,7 @@ fn service_flags(name: &str, args: &Args) -> Vec<String> {
     }
 }
 
-fn start_task(name: &str, net: &BusArgs, args: &Args) -> Result<Running> {
+fn start_task(name: &str, net: &BusArgs, flags: Vec<String>) -> Result<Running> {
     use clap::Parser;
     #[derive(Parser)]
     struct Wrap<T: clap::Args> {
@@ -561,7 +551,7 @@ fn start_task(name: &str, net: &BusArgs, args: &Args) -> Result<Running> {
     }
     let mut argv = vec![name.to_string()];
     argv.extend(net.to_cli());
-    argv.extend(service_flags(name, args));
+    argv.extend(flags);
     let (trigger, stop): (ShutdownTrigger, Shutdown) = shutdown::pair();
     let handle = match name {
         "mock-robot" => {
@@ -668,16 +658,17 @@ async fn subscribe_all(
                     o.forecasts.on_forecast(v);
                 }
             }
-            if short == "robot/state" && o.hri {
-                if let Some(v) = &v {
-                    o.reach.on_state(v);
+            if let (Some(m), Some(v)) = (o.mission.as_mut(), &v) {
+                match short.as_str() {
+                    "robot/state" => m.on_state(v),
+                    "safety/status" => m.on_safety(v),
+                    "humans" => m.on_humans(v),
+                    _ => {}
                 }
             }
             if short == "humans" {
                 if let Some(v) = &v {
                     o.forecasts.on_humans(v);
-                    let t = o.started.map(|s| s.elapsed().as_secs_f64()).unwrap_or(0.0);
-                    o.reach.on_humans(v, t);
                 }
                 o.human_frames += 1;
                 if v.as_ref()
@@ -785,18 +776,7 @@ fn summary(o: &Observed, elapsed: f64) -> serde_json::Value {
         );
     }
     let (rejected, dropped) = totals(o);
-    let reach = (o.hri && o.reach.best.grasp_to_wrist_m.is_finite()).then(|| {
-        let r = o.reach.best;
-        serde_json::json!({
-            "grasp_to_wrist_m": r.grasp_to_wrist_m,
-            "gripper_hand_surface_m": r.surface_m,
-            "at_s": o.reach.at_s,
-            "contact": r.contact(),
-            "proximity": r.surface_m <= echo_motion::sensors::PROXIMITY_MARGIN,
-            "reference_grasp_to_wrist_m": o.reference.map(|x| x.grasp_to_wrist_m),
-            "reference_gripper_hand_surface_m": o.reference.map(|x| x.surface_m),
-        })
-    });
+    let interactions = o.mission.as_ref().map(|m| m.reports());
     let forecast = o.forecasts.means().map(|(m, h, n)| {
         let inf = latency_summary(o.forecasts.inference_ms.iter().copied());
         serde_json::json!({
@@ -810,7 +790,8 @@ fn summary(o: &Observed, elapsed: f64) -> serde_json::Value {
     serde_json::json!({
         "duration_s": elapsed,
         "forecast": forecast,
-        "reach": reach,
+        "scenario": o.mission.as_ref().map(|m| m.mission.name.clone()),
+        "interactions": interactions,
         "keys": keys_json,
         "services": services,
         "humans": { "frames": o.human_frames, "partner_frames": o.partner_frames },
@@ -882,28 +863,10 @@ fn render_summary(s: &serde_json::Value) -> String {
             f["inference_p99_ms"].as_f64().unwrap_or(0.0),
         ));
     }
-    if let Some(r) = s["reach"].as_object() {
-        let f = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
-        let verdict = if r["contact"].as_bool() == Some(true) {
-            "contact (surfaces touch)"
-        } else if r["proximity"].as_bool() == Some(true) {
-            "within 5 cm, no contact"
-        } else {
-            "no contact"
-        };
-        out.push_str(&format!(
-            "reach: the robot's grasping frame came within {:.3} m of the partner's wrist (at t = {:.1} s), gripper–hand surfaces {:.3} m: {verdict}\n",
-            f("grasp_to_wrist_m"),
-            f("at_s"),
-            f("gripper_hand_surface_m"),
-        ));
-        if r["reference_grasp_to_wrist_m"].is_number() {
-            out.push_str(&format!(
-                "reach of the retargeted reference alone from the same spot: {:.3} m to the wrist, surfaces {:.3} m\n",
-                f("reference_grasp_to_wrist_m"),
-                f("reference_gripper_hand_surface_m"),
-            ));
-        }
+    if let Ok(reports) = serde_json::from_value::<Vec<echo_eval::behaviour::InteractionReport>>(
+        s["interactions"].clone(),
+    ) {
+        out.push_str(&mission::render(&reports));
     }
     if let Some(st) = s["safety_state"].as_str() {
         out.push_str(&format!("safety: final state {st}\n"));
