@@ -4,8 +4,8 @@
 //! towards the partner's hand — but a forecast regressed over many people stops a few
 //! centimetres short of any one hand. A handshake or a handover needs the gripper *at* the hand.
 //! [`ContactReach`] refines a learned plan the way a visual servo closes a reach: when the
-//! interaction is a contact one and the plan already brings a gripper within
-//! [`ContactConfig::engage_m`] of one of the partner's forecast hands, each plan point's arm
+//! interaction is a contact one and the partner offers a hand within [`ContactConfig::reach_m`]
+//! of the shoulder of the arm that the learned plan brings closest to it, each plan point's arm
 //! joints are pulled towards an inverse-kinematics solution that puts the grasping frame
 //! [`ContactConfig::grasp_depth_m`] inside that hand's sphere, with a first-order approach
 //! (time constant [`ContactConfig::tau_s`]) from the measured joints:
@@ -13,6 +13,16 @@
 //! ```text
 //! q'_k = q_k + (1 − exp(−t_k / τ)) · (IK(hand_k | q'_{k−1}) − q_k)
 //! ```
+//!
+//! Only an *offered* hand is reached for: one whose sphere keeps [`ContactConfig::offered_m`]
+//! from the partner's own torso and thighs. A hand the forecast says will be offered is reached
+//! for ahead of time: until the first forecast frame in which it is offered, the gripper heads
+//! for where it will be then (the safety service's contact speed is low: a reach that waited for
+//! the hand would arrive after the handshake). A hand drawn back to the body (the handshake is
+//! over, the object is handed) is let go: from the first point where it is no longer offered,
+//! the refinement's offset decays with the same time constant and the learned plan takes over
+//! — the gripper does not follow a hand to the partner's hip, where the safety service's body
+//! clearance would stop the robot.
 //!
 //! IK is damped least squares on the chosen arm's seven joints (numerical Jacobian of the
 //! URDF forward kinematics, damping λ, joint limits enforced). Everything else — speed near the
@@ -29,13 +39,17 @@ use nalgebra::{Matrix3, SMatrix, Vector3};
 /// Settings of the contact refinement.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContactConfig {
-    /// The plan is refined when it brings a gripper's surface this close to a partner's hand, m.
-    pub engage_m: f64,
+    /// The plan is refined when an offered hand is within this distance of the arm's shoulder
+    /// (the arm's reach), m.
+    pub reach_m: f64,
     /// The grasping frame is aimed this far past the hand sphere's near surface, towards its
-    /// centre, m (the hand sits between the fingers).
+    /// centre, m (0: at the surface; the gripper's own radius then overlaps the hand, and the
+    /// gripper stays on the robot's side of it, away from the partner's body).
     pub grasp_depth_m: f64,
-    /// Time constant of the approach, s.
+    /// Time constant of the approach (and of letting go), s.
     pub tau_s: f64,
+    /// A hand is offered while its sphere keeps this far from the partner's torso and thighs, m.
+    pub offered_m: f64,
     /// Damping of the least-squares steps, m.
     pub damping: f64,
     /// Newton steps per plan point.
@@ -47,9 +61,10 @@ pub struct ContactConfig {
 impl Default for ContactConfig {
     fn default() -> Self {
         ContactConfig {
-            engage_m: 0.25,
-            grasp_depth_m: 0.03,
-            tau_s: 0.25,
+            reach_m: 0.8,
+            grasp_depth_m: 0.0,
+            tau_s: 0.2,
+            offered_m: 0.1,
             damping: 0.05,
             iterations: 6,
             max_step_rad: 0.3,
@@ -80,6 +95,8 @@ pub struct ContactReach {
     arms: [[usize; 7]; 2],
 }
 
+const SHOULDER: [&str; 2] = ["arm_left_1_link", "arm_right_1_link"];
+
 const GRASP: [&str; 2] = [
     "gripper_left_grasping_frame",
     "gripper_right_grasping_frame",
@@ -98,7 +115,7 @@ impl ContactReach {
                     .ok_or_else(|| anyhow::anyhow!("the robot model has no joint {name}"))?;
             }
         }
-        for g in GRASP {
+        for g in GRASP.iter().chain(&SHOULDER) {
             anyhow::ensure!(model.has_frame(g), "the robot model has no frame {g}");
         }
         Ok(ContactReach {
@@ -144,16 +161,19 @@ impl ContactReach {
             }
             q
         };
-        let hands: Vec<[(Vector3<f64>, f64); 2]> = human
+        let hands: Vec<[(Vector3<f64>, f64, bool); 2]> = human
             .iter()
-            .map(|f| hand_spheres(f))
+            .map(|f| hand_spheres(f, self.cfg.offered_m))
             .collect::<Option<_>>()?;
         // The (arm, hand) pair that the learned plan brings closest.
         let mut best = (f64::INFINITY, 0usize, 0usize);
         for (k, p) in plan.points.iter().enumerate().skip(1) {
             let q = values(&p.positions);
             for (arm, g) in self.gripper_capsules(&q).into_iter().enumerate() {
-                for (h, (c, r)) in hands[k - 1].iter().enumerate() {
+                for (h, (c, r, offered)) in hands[k - 1].iter().enumerate() {
+                    if !offered {
+                        continue;
+                    }
                     let d = g.distance(&echo_robot::collision::Capsule::sphere(*c, *r));
                     if d < best.0 {
                         best = (d, arm, h);
@@ -162,21 +182,52 @@ impl ContactReach {
             }
         }
         let (planned, arm, hand) = best;
-        if !(planned <= self.cfg.engage_m) {
+        let mut q_prev = values(&plan.points[0].positions);
+        let shoulder = self
+            .model
+            .fk(&q_prev, SHOULDER[arm])
+            .ok()?
+            .translation
+            .vector;
+        // The first forecast frame in which the hand is offered within reach: until then the
+        // gripper heads for where the hand will be.
+        let first = hands.iter().position(|h| {
+            let (c, _, offered) = h[hand];
+            offered && (c - shoulder).norm() <= self.cfg.reach_m
+        })?;
+        if !planned.is_finite() {
             return None;
         }
-        let mut q_prev = values(&plan.points[0].positions);
         let mut last = f64::INFINITY;
+        // Once the hand is withdrawn: the offset from the learned plan at that moment, and when.
+        let mut released: Option<(Vec<f64>, f64)> = None;
         for k in 1..plan.points.len() {
             let t = plan.points[k].t;
             let learned = values(&plan.points[k].positions);
-            let (c, r) = hands[k - 1][hand];
-            let target = self.aim(&q_prev, arm, c, r);
-            let solved = self.solve(&q_prev, arm, &target);
-            let w = 1.0 - (-t.max(0.0) / self.cfg.tau_s).exp();
+            let (c, r, offered) = hands[(k - 1).max(first)][hand];
+            if !offered && released.is_none() {
+                let offset = self.arms[arm]
+                    .iter()
+                    .map(|&j| q_prev.0[j] - learned.0[j])
+                    .collect();
+                released = Some((offset, plan.points[k - 1].t));
+            }
             let mut q = learned.clone();
-            for &j in &self.arms[arm] {
-                q.0[j] = learned.0[j] + w * (solved.0[j] - learned.0[j]);
+            match &released {
+                Some((offset, t_rel)) => {
+                    let keep = (-(t - t_rel).max(0.0) / self.cfg.tau_s).exp();
+                    for (&j, o) in self.arms[arm].iter().zip(offset) {
+                        q.0[j] = learned.0[j] + keep * o;
+                    }
+                }
+                None => {
+                    let target = self.aim(&q_prev, arm, c, r);
+                    let solved = self.solve(&q_prev, arm, &target);
+                    let w = 1.0 - (-t.max(0.0) / self.cfg.tau_s).exp();
+                    for &j in &self.arms[arm] {
+                        q.0[j] = learned.0[j] + w * (solved.0[j] - learned.0[j]);
+                    }
+                }
             }
             for (slot, i) in plan.points[k].positions.iter_mut().zip(&index) {
                 *slot = q.0[*i];
@@ -256,21 +307,29 @@ impl ContactReach {
 }
 
 /// The partner's hand spheres (left, right) of a SMPL-22 frame, as the contact sensors model
-/// them.
-fn hand_spheres(frame: &[[f64; 3]]) -> Option<[(Vector3<f64>, f64); 2]> {
+/// them: centre, radius, and whether the hand is offered (its sphere at least `offered_m` from
+/// the torso and both thighs).
+fn hand_spheres(frame: &[[f64; 3]], offered_m: f64) -> Option<[(Vector3<f64>, f64, bool); 2]> {
     if frame.len() < NUM_JOINTS {
         return None;
     }
     let p: Vec<Vector3<f64>> = frame.iter().map(|x| Vector3::from(*x)).collect();
-    let mut out = [(Vector3::zeros(), 0.0); 2];
+    let capsules = body_capsules(&p);
+    let body: Vec<_> = capsules
+        .iter()
+        .filter(|(part, _)| matches!(part, BodyPart::Torso | BodyPart::Thigh(_)))
+        .map(|(_, c)| *c)
+        .collect();
+    let mut out = [(Vector3::zeros(), 0.0, false); 2];
     let mut found = 0;
-    for (part, c) in body_capsules(&p) {
+    for (part, c) in &capsules {
         if let BodyPart::Hand(left) = part {
-            out[usize::from(!left)] = (c.a, c.radius);
+            let offered = body.iter().all(|b| b.distance(c) >= offered_m);
+            out[usize::from(!left)] = (c.a, c.radius, offered);
             found += 1;
         }
     }
-    (found == 2 && out.iter().all(|(c, _)| c.iter().all(|x| x.is_finite()))).then_some(out)
+    (found == 2 && out.iter().all(|(c, ..)| c.iter().all(|x| x.is_finite()))).then_some(out)
 }
 
 #[cfg(test)]
@@ -298,16 +357,26 @@ mod tests {
         }
     }
 
-    /// A standing person whose right hand sphere is centred at `hand` (robot base frame).
-    fn person_with_right_hand_at(hand: Vector3<f64>) -> Vec<[f64; 3]> {
-        use echo_motion::skeleton::{forward, Body, Pose};
-        let v = forward(
+    /// A standing person facing the robot (−x) placed so that the right hand, held out, has
+    /// its sphere centred at `hand` (robot base frame); with `offered` false the same person
+    /// lets that arm hang.
+    fn person(hand: Vector3<f64>, offered: bool) -> Vec<[f64; 3]> {
+        use echo_motion::skeleton::{forward, j, Body, Pose};
+        let rest = forward(
             &Body::with_height(1.75),
             &Pose::rest(Vector3::zeros(), std::f64::consts::PI),
         );
-        let p: Vec<[f64; 3]> = v.iter().map(|x| [x.x, x.y, x.z]).collect();
-        // Move the whole body so the right hand's sphere centre lands on `hand`.
-        let shift = hand - hand_spheres(&p).unwrap()[1].0;
+        let arm = |dir: Vector3<f64>| {
+            let mut v = rest;
+            v[j::R_ELBOW] = v[j::R_SHOULDER] + dir * 0.28;
+            v[j::R_WRIST] = v[j::R_ELBOW] + dir * 0.25;
+            v
+        };
+        let out = arm(Vector3::new(-0.8, 0.0, -0.6).normalize());
+        let p: Vec<[f64; 3]> = out.iter().map(|x| [x.x, x.y, x.z]).collect();
+        // Move the whole body so the held-out hand's sphere centre lands on `hand`.
+        let shift = hand - hand_spheres(&p, 0.0).unwrap()[1].0;
+        let v = if offered { out } else { arm(-Vector3::z()) };
         v.iter().map(|x| (x + shift).into()).collect()
     }
 
@@ -336,9 +405,9 @@ mod tests {
         let (q, g) = right_arm_pose(&r);
         // The hand 15 cm from the grasping frame, further out in front.
         let hand = g + Vector3::new(0.12, 0.0, 0.09);
-        let person = person_with_right_hand_at(hand);
+        let offering = person(hand, true);
         let mut plan = plan_at(&r, &q, 23);
-        let human = vec![person; 23];
+        let human = vec![offering; 23];
         let before = plan.clone();
         let done = r
             .refine(&mut plan, &human, Interaction::Handshake)
@@ -348,7 +417,7 @@ mod tests {
         assert!(done.refined_surface_m <= 0.0, "{done:?}");
         // The first point (the measured joints) is kept; later points move progressively.
         assert_eq!(plan.points[0], before.points[0]);
-        let d = |k: usize| {
+        let dist = |plan: &RobotPlan, k: usize| {
             let q = plan.points[k].positions.clone();
             let names = &plan.joint_names;
             let qv = r
@@ -357,7 +426,17 @@ mod tests {
                 .unwrap();
             (r.grasp(&qv, 1) - hand).norm()
         };
+        let d = |k| dist(&plan, k);
         assert!(d(1) > d(5) && d(5) > d(23), "{} {} {}", d(1), d(5), d(23));
+        // The hand drawn back to the body from point 12 on: the gripper lets go.
+        let mut plan = before.clone();
+        let mut human = vec![person(hand, true); 23];
+        for f in human.iter_mut().skip(11) {
+            *f = person(hand, false);
+        }
+        r.refine(&mut plan, &human, Interaction::Handshake).unwrap();
+        let (mid, end) = (dist(&plan, 11), dist(&plan, 23));
+        assert!(end > mid + 0.05, "let go: {mid} then {end}");
         // Joint limits hold at every point.
         for p in &plan.points {
             for (n, v) in plan.joint_names.iter().zip(&p.positions) {
@@ -371,18 +450,19 @@ mod tests {
     fn other_interactions_and_far_hands_leave_the_plan_alone() {
         let r = reach();
         let (q, g) = right_arm_pose(&r);
-        let near = person_with_right_hand_at(g + Vector3::new(0.12, 0.0, 0.0));
-        let far = person_with_right_hand_at(g + Vector3::new(0.8, 0.0, 0.0));
+        let near = person(g + Vector3::new(0.12, 0.0, 0.0), true);
+        let far = person(g + Vector3::new(0.8, 0.0, 0.0), true);
+        let withdrawn = person(g + Vector3::new(0.12, 0.0, 0.0), false);
         for (human, kind) in [
             (&near, Interaction::Wave),
             (&near, Interaction::Bow),
             (&far, Interaction::Handshake),
+            (&withdrawn, Interaction::Handshake),
         ] {
             let mut plan = plan_at(&r, &q, 23);
             let before = plan.clone();
-            assert!(r
-                .refine(&mut plan, &vec![human.clone(); 23], kind)
-                .is_none());
+            let done = r.refine(&mut plan, &vec![human.clone(); 23], kind);
+            assert!(done.is_none(), "{kind:?}: {done:?}");
             assert_eq!(plan, before);
         }
         // Malformed forecasts (too short, too few joints, NaN) are refused, never a panic.

@@ -526,7 +526,8 @@ impl ForecastServer {
                 }
             });
             if let (Some(p), Some(reach), Some(kind)) = (&mut plan, &self.contact, interaction) {
-                if reach.refine(p, &human, kind).is_some() {
+                if let Some(done) = reach.refine(p, &human, kind) {
+                    tracing::debug!(?done, "contact refinement");
                     self.counters.contact_refined += 1;
                 }
             }

@@ -8,6 +8,11 @@
 //! blended with a smoothstep). Each interaction is a [`Segment`] with its description and type,
 //! which the demo announces on `prompt` while it plays and scores afterwards.
 //!
+//! The partner stands [`STANDOFF_M`] further from the robot than they stood from person B (moved
+//! along the line from the robot to where they were at the closest moment): the robot's base,
+//! torso and shoulder mounts are deeper than a person's chest, and where B stood, the
+//! partner's torso would already be inside the robot's body clearance.
+//!
 //! | name | interactions |
 //! |---|---|
 //! | `mission` | walk up and shake hands (a walking clip), hand an object over, wave goodbye |
@@ -20,6 +25,9 @@ use echo_msgs::Interaction;
 use nalgebra::Vector3;
 
 use crate::perception::{clip_partner_for_robot, Actor, Recorded};
+
+/// How much further from the robot the partner stands than from person B, m.
+pub const STANDOFF_M: f64 = 0.2;
 
 /// Time the partner takes between two interactions, s.
 pub const TRANSITION_S: f64 = 1.5;
@@ -122,7 +130,8 @@ impl Mission {
             else {
                 continue;
             };
-            let next = person.frames();
+            let next = standoff(person.frames(), clip, STANDOFF_M);
+            let next = next.as_slice();
             if let (Some(last), Some(first)) = (frames.last().copied(), next.first()) {
                 let n = (TRANSITION_S * FPS).round() as usize;
                 for k in 1..n {
@@ -171,6 +180,21 @@ impl Mission {
     pub fn partner_at(&self, t: f64) -> [Vector3<f64>; NUM_JOINTS] {
         self.partner.joints_at(t)
     }
+}
+
+/// The partner's frames moved `d` metres away from the robot, along the horizontal direction
+/// from the robot to their pelvis at the clip's closest moment.
+fn standoff(
+    frames: &[[Vector3<f64>; NUM_JOINTS]],
+    clip: &Clip,
+    d: f64,
+) -> Vec<[Vector3<f64>; NUM_JOINTS]> {
+    let at = crate::perception::closest_frame(clip).min(frames.len().saturating_sub(1));
+    let dir = frames
+        .get(at)
+        .and_then(|f| Vector3::new(f[0].x, f[0].y, 0.0).try_normalize(1e-6))
+        .unwrap_or_else(Vector3::x);
+    frames.iter().map(|f| f.map(|p| p + dir * d)).collect()
 }
 
 #[cfg(test)]
@@ -230,5 +254,60 @@ mod tests {
         }
         // No jump of the pelvis faster than a brisk walk.
         assert!(worst < 2.5, "pelvis speed {worst} m/s");
+    }
+}
+#[cfg(test)]
+mod probe {
+    #[test]
+    #[ignore]
+    fn probe_handshake_geometry() {
+        use echo_motion::sensors::{body_capsules, BodyPart};
+        let m = super::Mission::named(&std::env::var("M").unwrap_or("handshake".into())).unwrap();
+        let model = echo_robot::RobotModel::tiago_dual();
+        let q = model
+            .values_from(
+                echo_robot::home_pose()
+                    .iter()
+                    .map(|(n, v)| (n.as_str(), *v)),
+            )
+            .unwrap();
+        let sh = ["arm_left_1_link", "arm_right_1_link"]
+            .map(|f| model.fk(&q, f).unwrap().translation.vector);
+        let g = [
+            "gripper_left_grasping_frame",
+            "gripper_right_grasping_frame",
+        ]
+        .map(|f| model.fk(&q, f).unwrap().translation.vector);
+        println!("shoulders {sh:?} grippers {g:?}");
+        let mut t = 0.0;
+        while t < m.duration() {
+            let p = m.partner_at(t);
+            let caps = body_capsules(&p);
+            let body: Vec<_> = caps
+                .iter()
+                .filter(|(b, _)| matches!(b, BodyPart::Torso | BodyPart::Thigh(_)))
+                .map(|(_, c)| *c)
+                .collect();
+            let mut line = format!("t={t:4.1} pelvis=({:.2},{:.2})", p[0].x, p[0].y);
+            for (part, c) in &caps {
+                if let BodyPart::Hand(l) = part {
+                    let off = body
+                        .iter()
+                        .map(|b| b.distance(c))
+                        .fold(f64::INFINITY, f64::min);
+                    let ds: Vec<String> = sh
+                        .iter()
+                        .map(|s| format!("{:.2}", (c.a - s).norm()))
+                        .collect();
+                    line += &format!(
+                        " {}: z={:.2} body={off:.2} sh={ds:?}",
+                        if *l { "L" } else { "R" },
+                        c.a.z
+                    );
+                }
+            }
+            println!("{line}");
+            t += 0.25;
+        }
     }
 }
