@@ -14,13 +14,19 @@
 //! * the head camera's field of view (the URDF's optical frame, else [`builder::fixed_camera_pose`]);
 //! * the safety state as a coloured ring and label, and the closest robot–person distance as a
 //!   line between the two closest capsule surface points.
+//!
+//! Viewers: [`render`] rasterises scenes from a fixed side view into an animated GIF
+//! ([`render_recording`]).
 
 pub mod builder;
+mod font;
 pub mod geometry;
+pub mod render;
 pub mod scene;
 pub mod style;
 
 pub use builder::{Input, InputStats, SceneBuilder, SceneOptions};
+pub use render::{render_recording, CameraView, RenderOptions, RenderSummary};
 pub use scene::{Caption, Entity, EntityKind, Primitive, Rgba, Scene};
 
 /// Errors of scene building, rendering and conversion.
@@ -29,4 +35,34 @@ pub enum SceneError {
     /// The robot description lacks what the scene needs.
     #[error("robot model: {0}")]
     Robot(echo_robot::RobotError),
+    /// The recording could not be read.
+    #[error(transparent)]
+    Recording(#[from] echo_record::RecordingError),
+    /// Writing an output file failed.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// Encoding the GIF failed.
+    #[error("writing GIF {path}: {message}")]
+    Gif {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What the encoder reported.
+        message: String,
+    },
+    /// An option is out of range.
+    #[error("invalid option {name}: {message}")]
+    Option {
+        /// The option.
+        name: &'static str,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// The recording has no messages.
+    #[error("{0}: the recording has no messages")]
+    Empty(std::path::PathBuf),
 }
