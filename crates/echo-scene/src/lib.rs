@@ -16,10 +16,13 @@
 //!   line between the two closest capsule surface points.
 //!
 //! Viewers: [`render`] rasterises scenes from a fixed side view into an animated GIF
-//! ([`render_recording`]).
+//! ([`render_recording`]); with the `foxglove` feature (default), [`foxglove`] writes MCAP files
+//! Foxglove draws in 3D and serves scenes live over the Foxglove WebSocket protocol.
 
 pub mod builder;
 mod font;
+#[cfg(feature = "foxglove")]
+pub mod foxglove;
 pub mod geometry;
 pub mod render;
 pub mod scene;
@@ -65,4 +68,12 @@ pub enum SceneError {
     /// The recording has no messages.
     #[error("{0}: the recording has no messages")]
     Empty(std::path::PathBuf),
+    /// MCAP output failed.
+    #[cfg(feature = "foxglove")]
+    #[error("writing MCAP: {0}")]
+    Mcap(#[from] mcap::McapError),
+    /// The Foxglove SDK reported an error.
+    #[cfg(feature = "foxglove")]
+    #[error("foxglove: {0}")]
+    Foxglove(String),
 }
