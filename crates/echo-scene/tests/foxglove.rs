@@ -79,6 +79,8 @@ fn converted_recordings_carry_scene_and_tf_schemas_and_the_raw_json() {
         .collect();
     want.sort_by(|a, b| a.1.cmp(&b.1).then(a.0.cmp(&b.0)));
     assert_eq!(raw_back, want);
+    // So the converted file is still a recording (replay and render read the bus messages).
+    assert_eq!(echo_record::read_recording(&out).unwrap(), original);
 
     // Scenes: at most 30 per second, every entity in base_footprint, the partner walking.
     assert_eq!(scenes.len() as u64, summary.scenes);
