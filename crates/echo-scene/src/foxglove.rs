@@ -4,7 +4,6 @@
 //! ([`LiveServer`]). The bus's own JSON messages are kept on their key expressions, so one file
 //! holds the raw data and the picture of it.
 
-use std::borrow::Cow;
 use std::collections::{BTreeMap, HashMap};
 use std::io::{Seek, Write};
 use std::path::Path;
@@ -488,10 +487,4 @@ impl LiveServer {
     pub async fn stop(self) {
         self.handle.stop().wait().await;
     }
-}
-
-/// The schema name, encoding and descriptor of the scene topic (for checks and tools).
-pub fn scene_schema() -> (String, String, Cow<'static, [u8]>) {
-    let s = SceneUpdate::get_schema().unwrap_or_else(|| foxglove::Schema::new("", "", Vec::new()));
-    (s.name, s.encoding, s.data)
 }

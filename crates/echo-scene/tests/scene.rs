@@ -242,3 +242,38 @@ fn joint_states_move_the_capsules_by_forward_kinematics() {
     let i = model.joint_index("arm_left_2_joint").unwrap();
     assert_eq!(b.joint_values().0[i], echo_robot::HOME_ARM[1]);
 }
+
+#[test]
+fn no_prefix_or_byte_flip_of_a_valid_message_panics() {
+    let valid: Vec<(String, Vec<u8>)> = vec![
+        (
+            key("humans"),
+            humans(T0, vec![track(7, person(1.5, 0.0))], Some(7)),
+        ),
+        (key("robot/state"), home_state(T0)),
+        (key("forecast"), forecast(T0, 7, 1.5)),
+        (
+            key("safety/status"),
+            safety(T0, SafetyState::Stopping, Some(0.3)),
+        ),
+    ];
+    let mut b = SceneBuilder::new();
+    let (mut refused, mut tried) = (0, 0);
+    for (k, p) in &valid {
+        // No strict prefix of a JSON object is one.
+        for cut in (0..p.len()).step_by(7) {
+            refused += u64::from(b.on_message(k, &p[..cut]).is_none());
+            tried += 1;
+        }
+        for i in (0..p.len()).step_by(13) {
+            let mut q = p.clone();
+            q[i] = q[i].wrapping_add(1 + (i % 200) as u8);
+            b.on_message(k, &q);
+            let _ = b.scene(T0);
+        }
+        assert!(b.on_message(k, p).is_some());
+    }
+    assert_eq!(refused, tried);
+    assert!(b.stats().rejected_total() >= refused);
+    assert!(b.scene(T0).entity("partner").is_some());
+}
