@@ -125,7 +125,9 @@ fn sender_stamp(payload: &[u8]) -> Option<u64> {
         .map(|s| s.header.stamp_ns)
 }
 
-/// Read every message of the recording at `path`, in log-time order.
+/// Read every bus message (the `json` channels) of the recording at `path`, in log-time order.
+/// Channels in other encodings — what viewers derive from the bus, such as Foxglove scenes —
+/// are skipped.
 pub fn read_recording(path: &Path) -> Result<Vec<Recorded>, RecordingError> {
     let bytes = std::fs::read(path).map_err(|source| RecordingError::Io {
         path: path.to_path_buf(),
@@ -138,6 +140,9 @@ pub fn read_recording(path: &Path) -> Result<Vec<Recorded>, RecordingError> {
     let mut out = vec![];
     for m in mcap::MessageStream::new(&bytes).map_err(mcap_err)? {
         let m = m.map_err(mcap_err)?;
+        if m.channel.message_encoding != "json" {
+            continue;
+        }
         out.push(Recorded {
             key: m.channel.topic.clone(),
             log_time_ns: m.log_time,
@@ -175,6 +180,40 @@ mod tests {
         assert_eq!(back[1].publish_time_ns, 150);
         assert_eq!(back[1].payload, b"not json");
         assert_eq!(back[2].log_time_ns, 200);
+    }
+
+    #[test]
+    fn derived_channels_are_skipped() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("viewer.mcap");
+        let file = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
+        let mut w = mcap::WriteOptions::new()
+            .compression(None)
+            .create(file)
+            .unwrap();
+        let schema = w
+            .add_schema("foxglove.SceneUpdate", "protobuf", b"x")
+            .unwrap();
+        let scene = w
+            .add_channel(schema, "/scene", "protobuf", &BTreeMap::new())
+            .unwrap();
+        let bus = w
+            .add_channel(0, "echo/r1/humans", "json", &BTreeMap::new())
+            .unwrap();
+        for (channel_id, data) in [(scene, &b"\x0a\x00"[..]), (bus, &b"{}"[..])] {
+            let header = mcap::records::MessageHeader {
+                channel_id,
+                sequence: 1,
+                log_time: 5,
+                publish_time: 5,
+            };
+            w.write_to_known_channel(&header, data).unwrap();
+        }
+        w.finish().unwrap();
+        drop(w);
+        let back = read_recording(&path).unwrap();
+        assert_eq!(back.len(), 1);
+        assert_eq!(back[0].key, "echo/r1/humans");
     }
 
     #[test]

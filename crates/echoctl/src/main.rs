@@ -1,6 +1,6 @@
 //! `echoctl`: Echo's command-line tool.
 //!
-//! Lifecycle: `demo`, `up`. Monitoring: `monitor`, `list`, `record`, `replay`. Stand-ins: `mock-perception`, `mock-robot`.
+//! Lifecycle: `demo`, `up`. Monitoring: `monitor`, `list`, `record`, `replay`, `scene`. Stand-ins: `mock-perception`, `mock-robot`.
 //! Models and data: `data`, `train`, `eval`, `export`. Measurement: `bench`. Network: `router`.
 
 use anyhow::Result;
@@ -49,6 +49,10 @@ enum Command {
     /// Play an MCAP recording back onto the bus at its original rate (or faster).
     #[command(display_order = 13)]
     Replay(cmd::record::ReplayArgs),
+    /// Echo in 3D: a recording as a Foxglove MCAP (`mcap`) or a GIF (`gif`), the live bus for
+    /// Foxglove (`live`).
+    #[command(display_order = 14, subcommand)]
+    Scene(cmd::scene::Verb),
     /// Run a Zenoh router (the same engine as zenohd, from this binary).
     #[command(display_order = 50)]
     Router(cmd::router::Args),
@@ -104,6 +108,10 @@ async fn main() -> Result<()> {
         Command::Replay(a) => {
             telemetry::init();
             cmd::record::replay(a).await
+        }
+        Command::Scene(v) => {
+            telemetry::init();
+            cmd::scene::run(v).await
         }
         Command::Router(a) => {
             let _denied = cmd::router::init_logging();

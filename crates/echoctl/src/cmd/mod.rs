@@ -13,6 +13,7 @@ pub mod monitor;
 pub mod prompt;
 pub mod record;
 pub mod router;
+pub mod scene;
 pub mod soak;
 pub mod train;
 pub mod up;

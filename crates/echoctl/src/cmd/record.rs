@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use echo_bus::{keys, shutdown, Bus, BusArgs};
 use echo_record::live::{self, ReplayOptions};
 
@@ -22,6 +22,10 @@ pub struct RecordArgs {
     /// Stop after this many seconds (default: until Ctrl-C).
     #[arg(long)]
     pub seconds: Option<f64>,
+    /// Add 3D scenes and the robot's link frames for Foxglove (/scene, /tf); the file stays a
+    /// complete recording of the bus.
+    #[arg(long)]
+    pub foxglove: bool,
 }
 
 /// Options of `echoctl replay`.
@@ -52,14 +56,22 @@ pub async fn record(args: RecordArgs) -> Result<()> {
         args.keys.clone()
     };
     let duration = args.seconds.map(Duration::from_secs_f64);
-    let summary = live::record(
-        bus.session(),
-        &keys,
-        &args.out,
-        duration,
-        shutdown::on_signals(),
-    )
-    .await?;
+    // With --foxglove the bus is recorded as usual, then converted into the output file.
+    let raw = if args.foxglove {
+        args.out.with_extension("bus.mcap")
+    } else {
+        args.out.clone()
+    };
+    let summary =
+        live::record(bus.session(), &keys, &raw, duration, shutdown::on_signals()).await?;
+    let scenes = if args.foxglove {
+        let opts = echo_scene::foxglove::FoxgloveOptions::default();
+        let s = echo_scene::foxglove::convert_recording(&raw, &args.out, &opts)?;
+        std::fs::remove_file(&raw).with_context(|| format!("removing {}", raw.display()))?;
+        Some(s.scenes)
+    } else {
+        None
+    };
     println!(
         "wrote {} messages to {} ({} dropped)",
         summary.total(),
@@ -68,6 +80,9 @@ pub async fn record(args: RecordArgs) -> Result<()> {
     );
     for (k, n) in &summary.per_key {
         println!("  {n:>8}  {k}");
+    }
+    if let Some(n) = scenes {
+        println!("  {n:>8}  scenes and frame updates for Foxglove (/scene, /tf)");
     }
     bus.close().await
 }
