@@ -5,8 +5,7 @@
 //! centimetres short of any one hand. A handshake or a handover needs the gripper *at* the hand.
 //! [`ContactReach`] refines a learned plan the way a visual servo closes a reach: when the
 //! interaction is a contact one and the partner offers a hand within [`ContactConfig::reach_m`]
-//! of the shoulder of the arm that the learned plan brings closest to it, each plan point's arm
-//! joints are pulled towards an inverse-kinematics solution that puts the grasping frame
+//! of the nearer of the robot's shoulders, that arm's joints at each plan point are pulled towards an inverse-kinematics solution that puts the grasping frame
 //! [`ContactConfig::grasp_depth_m`] inside that hand's sphere, with a first-order approach
 //! (time constant [`ContactConfig::tau_s`]) from the measured joints:
 //!
@@ -61,7 +60,7 @@ pub struct ContactConfig {
 impl Default for ContactConfig {
     fn default() -> Self {
         ContactConfig {
-            reach_m: 0.8,
+            reach_m: 0.9,
             grasp_depth_m: 0.0,
             tau_s: 0.2,
             offered_m: 0.1,
@@ -79,7 +78,7 @@ pub struct ContactRefinement {
     pub left_arm: bool,
     /// The partner's hand aimed at (left = true).
     pub left_hand: bool,
-    /// Surface distance of the learned plan's closest point, m.
+    /// Surface distance of the learned plan's closest point to that hand, m.
     pub planned_surface_m: f64,
     /// Surface distance at the refined plan's last point, m (≤ 0: touching).
     pub refined_surface_m: f64,
@@ -165,23 +164,35 @@ impl ContactReach {
             .iter()
             .map(|f| hand_spheres(f, self.cfg.offered_m))
             .collect::<Option<_>>()?;
-        // The (arm, hand) pair that the learned plan brings closest.
-        let mut best = (f64::INFINITY, 0usize, 0usize);
-        for (k, p) in plan.points.iter().enumerate().skip(1) {
-            let q = values(&p.positions);
-            for (arm, g) in self.gripper_capsules(&q).into_iter().enumerate() {
-                for (h, (c, r, offered)) in hands[k - 1].iter().enumerate() {
-                    if !offered {
-                        continue;
-                    }
-                    let d = g.distance(&echo_robot::collision::Capsule::sphere(*c, *r));
-                    if d < best.0 {
-                        best = (d, arm, h);
-                    }
-                }
-            }
-        }
-        let (planned, arm, hand) = best;
+        // The hand: the offered one (the nearer to the robot if both are), in the first
+        // forecast frame that offers one. The arm: the one whose shoulder is nearer to it (an
+        // arm reaching across the robot's front would meet the other arm).
+        let (first, hand) = hands.iter().enumerate().find_map(|(k, h)| {
+            let offered: Vec<usize> = (0..2).filter(|&i| h[i].2).collect();
+            let pick = offered
+                .into_iter()
+                .min_by(|&a, &b| h[a].0.xy().norm().total_cmp(&h[b].0.xy().norm()))?;
+            Some((k, pick))
+        })?;
+        let q0 = values(&plan.points[0].positions);
+        let shoulders: Vec<Vector3<f64>> = SHOULDER
+            .iter()
+            .map(|f| self.model.fk(&q0, f).map(|p| p.translation.vector))
+            .collect::<Result<_, _>>()
+            .ok()?;
+        let c = hands[first][hand].0;
+        let arm = usize::from((c - shoulders[1]).norm() < (c - shoulders[0]).norm());
+        let planned = plan
+            .points
+            .iter()
+            .skip(1)
+            .zip(&hands)
+            .map(|(p, h)| {
+                let (c, r, _) = h[hand];
+                self.gripper_capsules(&values(&p.positions))[arm]
+                    .distance(&echo_robot::collision::Capsule::sphere(c, r))
+            })
+            .fold(f64::INFINITY, f64::min);
         let mut q_prev = values(&plan.points[0].positions);
         let shoulder = self
             .model
@@ -189,15 +200,12 @@ impl ContactReach {
             .ok()?
             .translation
             .vector;
-        // The first forecast frame in which the hand is offered within reach: until then the
-        // gripper heads for where the hand will be.
-        let first = hands.iter().position(|h| {
-            let (c, _, offered) = h[hand];
-            offered && (c - shoulder).norm() <= self.cfg.reach_m
-        })?;
-        if !planned.is_finite() {
+        // Until the hand is offered the gripper heads for where it will be then; a hand out of
+        // the arm's reach is left alone.
+        if (hands[first][hand].0 - shoulder).norm() > self.cfg.reach_m {
             return None;
         }
+        let start = self.grasp(&q_prev, arm);
         let mut last = f64::INFINITY;
         // Once the hand is withdrawn: the offset from the learned plan at that moment, and when.
         let mut released: Option<(Vec<f64>, f64)> = None;
@@ -221,11 +229,11 @@ impl ContactReach {
                     }
                 }
                 None => {
-                    let target = self.aim(&q_prev, arm, c, r);
-                    let solved = self.solve(&q_prev, arm, &target);
+                    let aim = self.aim(&q_prev, arm, c, r);
                     let w = 1.0 - (-t.max(0.0) / self.cfg.tau_s).exp();
+                    let solved = self.solve(&q_prev, arm, &(start + w * (aim - start)));
                     for &j in &self.arms[arm] {
-                        q.0[j] = learned.0[j] + w * (solved.0[j] - learned.0[j]);
+                        q.0[j] = solved.0[j];
                     }
                 }
             }
@@ -412,7 +420,7 @@ mod tests {
         let done = r
             .refine(&mut plan, &human, Interaction::Handshake)
             .expect("engaged");
-        assert!(!done.left_arm);
+        let arm = usize::from(!done.left_arm);
         assert!(done.planned_surface_m > 0.0, "{done:?}");
         assert!(done.refined_surface_m <= 0.0, "{done:?}");
         // The first point (the measured joints) is kept; later points move progressively.
@@ -424,7 +432,7 @@ mod tests {
                 .model
                 .values_from(names.iter().map(|n| n.as_str()).zip(q))
                 .unwrap();
-            (r.grasp(&qv, 1) - hand).norm()
+            (r.grasp(&qv, arm) - hand).norm()
         };
         let d = |k| dist(&plan, k);
         assert!(d(1) > d(5) && d(5) > d(23), "{} {} {}", d(1), d(5), d(23));
@@ -451,7 +459,7 @@ mod tests {
         let r = reach();
         let (q, g) = right_arm_pose(&r);
         let near = person(g + Vector3::new(0.12, 0.0, 0.0), true);
-        let far = person(g + Vector3::new(0.8, 0.0, 0.0), true);
+        let far = person(g + Vector3::new(1.3, 0.0, 0.0), true);
         let withdrawn = person(g + Vector3::new(0.12, 0.0, 0.0), false);
         for (human, kind) in [
             (&near, Interaction::Wave),

@@ -13,6 +13,11 @@
 //! torso and shoulder mounts are deeper than a person's chest, and where B stood, the
 //! partner's torso would already be inside the robot's body clearance.
 //!
+//! In a handshake, a high five or a handover the partner holds the hand out for [`HOLD_S`] at
+//! its furthest from their body (the clip's pose at that moment is held): a person offering a
+//! robot their hand waits for it, and the robot's arm, slowed near people by the safety
+//! service's contact speed, needs longer than person B did.
+//!
 //! | name | interactions |
 //! |---|---|
 //! | `mission` | walk up and shake hands (a walking clip), hand an object over, wave goodbye |
@@ -25,6 +30,10 @@ use echo_msgs::Interaction;
 use nalgebra::Vector3;
 
 use crate::perception::{clip_partner_for_robot, Actor, Recorded};
+
+/// How long the partner holds out a hand for a handshake, a high five or a handover, waiting
+/// for the robot, s.
+pub const HOLD_S: f64 = 2.5;
 
 /// How much further from the robot the partner stands than from person B, m.
 pub const STANDOFF_M: f64 = 0.2;
@@ -130,7 +139,13 @@ impl Mission {
             else {
                 continue;
             };
-            let next = standoff(person.frames(), clip, STANDOFF_M);
+            let mut next = standoff(person.frames(), clip, STANDOFF_M);
+            if matches!(
+                clip.params.kind,
+                Interaction::Handshake | Interaction::HighFive | Interaction::Handover
+            ) {
+                hold_offer(&mut next, HOLD_S);
+            }
             let next = next.as_slice();
             if let (Some(last), Some(first)) = (frames.last().copied(), next.first()) {
                 let n = (TRANSITION_S * FPS).round() as usize;
@@ -180,6 +195,30 @@ impl Mission {
     pub fn partner_at(&self, t: f64) -> [Vector3<f64>; NUM_JOINTS] {
         self.partner.joints_at(t)
     }
+}
+
+/// Hold the frame in which a hand is furthest from the pelvis–neck axis for `hold_s`.
+fn hold_offer(frames: &mut Vec<[Vector3<f64>; NUM_JOINTS]>, hold_s: f64) {
+    use echo_motion::skeleton::j;
+    let reach = |f: &[Vector3<f64>; NUM_JOINTS]| {
+        let axis = f[j::NECK] - f[j::PELVIS];
+        [j::L_WRIST, j::R_WRIST]
+            .iter()
+            .map(|&w| {
+                let v = f[w] - f[j::PELVIS];
+                let along = axis.try_normalize(1e-9).map(|a| v.dot(&a)).unwrap_or(0.0);
+                (v.norm_squared() - along * along).max(0.0).sqrt()
+            })
+            .fold(0.0, f64::max)
+    };
+    let Some(at) =
+        (0..frames.len()).max_by(|a, b| reach(&frames[*a]).total_cmp(&reach(&frames[*b])))
+    else {
+        return;
+    };
+    let n = (hold_s * FPS).round() as usize;
+    let held = frames[at];
+    frames.splice(at..at, std::iter::repeat_n(held, n));
 }
 
 /// The partner's frames moved `d` metres away from the robot, along the horizontal direction

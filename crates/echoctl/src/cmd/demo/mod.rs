@@ -69,6 +69,9 @@ pub struct Args {
     /// Directory for the services' logs (default: a fresh temporary directory).
     #[arg(long)]
     pub log_dir: Option<PathBuf>,
+    /// Write no recording, Foxglove file or GIF.
+    #[arg(long)]
+    pub no_recording: bool,
     /// Write the summary as JSON to this file too.
     #[arg(long)]
     pub summary_json: Option<PathBuf>,
@@ -237,6 +240,9 @@ struct Observed {
     forecasts: ForecastScore,
     /// Human–robot scenarios: what the robot did, per interaction.
     mission: Option<mission::MissionObserver>,
+    /// Every bus message of the run (MCAP), for the Foxglove file and the GIF.
+    recorder: Option<echo_record::Recorder<std::io::BufWriter<std::fs::File>>>,
+    recording_errors: u64,
 }
 
 enum Running {
@@ -341,8 +347,17 @@ pub async fn run(args: Args) -> Result<()> {
         .mission
         .clone()
         .map(|m| mission::MissionObserver::new(m, setup.t0_ns));
+    let recording = log_dir.join("recording.mcap");
+    let recorder = match args.no_recording {
+        true => None,
+        false => Some(echo_record::Recorder::new(std::io::BufWriter::new(
+            std::fs::File::create(&recording)
+                .with_context(|| format!("creating {}", recording.display()))?,
+        ))?),
+    };
     *observed.lock().unwrap_or_else(|e| e.into_inner()) = Observed {
         mission: mission_obs,
+        recorder,
         ..Observed::default()
     };
     let mut stop = shutdown::on_signals();
@@ -424,6 +439,17 @@ pub async fn run(args: Args) -> Result<()> {
     tokio::time::sleep(Duration::from_millis(300)).await;
     let summary = summary(&observed.lock().unwrap_or_else(|e| e.into_inner()), elapsed);
     println!("{}", render_summary(&summary));
+    let recorder = observed
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .recorder
+        .take();
+    if let Some(r) = recorder {
+        match r.finish() {
+            Ok(_) => pictures(&recording, &log_dir),
+            Err(e) => eprintln!("the recording could not be finished: {e}"),
+        }
+    }
     if let Some(p) = &args.summary_json {
         std::fs::write(p, serde_json::to_vec_pretty(&summary)?)
             .with_context(|| format!("writing {}", p.display()))?;
@@ -441,6 +467,33 @@ pub async fn run(args: Args) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The run as a Foxglove file and an animated GIF, from its recording.
+fn pictures(recording: &Path, dir: &Path) {
+    println!("recording: {}", recording.display());
+    let foxglove = dir.join("foxglove.mcap");
+    match echo_scene::foxglove::convert_recording(
+        recording,
+        &foxglove,
+        &echo_scene::foxglove::FoxgloveOptions::default(),
+    ) {
+        Ok(_) => println!(
+            "Foxglove (3D scene on /scene, open the file in Foxglove): {}",
+            foxglove.display()
+        ),
+        Err(e) => eprintln!("no Foxglove file: {e}"),
+    }
+    let gif = dir.join("demo.gif");
+    match echo_scene::render_recording(recording, &gif, &echo_scene::RenderOptions::default()) {
+        Ok(s) => println!(
+            "animation ({} frames, {:.1} s): {}",
+            s.frames,
+            s.duration_s,
+            gif.display()
+        ),
+        Err(e) => eprintln!("no animation: {e}"),
+    }
 }
 
 fn start_process(
@@ -629,6 +682,11 @@ async fn subscribe_all(
             let short = key.strip_prefix(&prefix).unwrap_or(key).to_string();
             let v: Option<serde_json::Value> = serde_json::from_slice(&bytes).ok();
             let mut o = observed.lock().unwrap_or_else(|e| e.into_inner());
+            if let Some(r) = o.recorder.as_mut() {
+                if r.write(key, now, &bytes).is_err() {
+                    o.recording_errors += 1;
+                }
+            }
             if short.starts_with("status/") {
                 if let Some(v) = &v {
                     o.status
