@@ -94,6 +94,9 @@ pub struct ContactReach {
     arms: [[usize; 7]; 2],
 }
 
+/// The arm used last time is kept unless the other shoulder is this much nearer the hand, m.
+pub const ARM_SWITCH_M: f64 = 0.1;
+
 const SHOULDER: [&str; 2] = ["arm_left_1_link", "arm_right_1_link"];
 
 const GRASP: [&str; 2] = [
@@ -132,13 +135,17 @@ impl ContactReach {
 
     /// Refine `plan` (joint positions over time, base fixed) towards the partner's forecast
     /// hands `human` (one SMPL-22 frame per plan point after the first, robot base frame) for
-    /// `interaction`. Returns what was done, or `None` when the plan was left as it is (not a
-    /// contact interaction, no gripper near a hand, unknown joints, or too short a forecast).
+    /// `interaction`. `prefer_left`: the arm used last time, kept unless the other shoulder is
+    /// [`ARM_SWITCH_M`] nearer the hand (a hand held in the middle must not make the robot
+    /// alternate arms). Returns what was done, or `None` when the plan was left as it is (not a
+    /// contact interaction, no hand offered within reach, unknown joints, or too short a
+    /// forecast).
     pub fn refine(
         &self,
         plan: &mut RobotPlan,
         human: &[Vec<[f64; 3]>],
         interaction: Interaction,
+        prefer_left: Option<bool>,
     ) -> Option<ContactRefinement> {
         if !matches!(
             interaction,
@@ -181,7 +188,12 @@ impl ContactReach {
             .collect::<Result<_, _>>()
             .ok()?;
         let c = hands[first][hand].0;
-        let arm = usize::from((c - shoulders[1]).norm() < (c - shoulders[0]).norm());
+        let (dl, dr) = ((c - shoulders[0]).norm(), (c - shoulders[1]).norm());
+        let arm = match prefer_left {
+            Some(true) if dr + ARM_SWITCH_M > dl => 0,
+            Some(false) if dl + ARM_SWITCH_M > dr => 1,
+            _ => usize::from(dr < dl),
+        };
         let planned = plan
             .points
             .iter()
@@ -418,7 +430,7 @@ mod tests {
         let human = vec![offering; 23];
         let before = plan.clone();
         let done = r
-            .refine(&mut plan, &human, Interaction::Handshake)
+            .refine(&mut plan, &human, Interaction::Handshake, None)
             .expect("engaged");
         let arm = usize::from(!done.left_arm);
         assert!(done.planned_surface_m > 0.0, "{done:?}");
@@ -442,7 +454,8 @@ mod tests {
         for f in human.iter_mut().skip(11) {
             *f = person(hand, false);
         }
-        r.refine(&mut plan, &human, Interaction::Handshake).unwrap();
+        r.refine(&mut plan, &human, Interaction::Handshake, None)
+            .unwrap();
         let (mid, end) = (dist(&plan, 11), dist(&plan, 23));
         assert!(end > mid + 0.05, "let go: {mid} then {end}");
         // Joint limits hold at every point.
@@ -469,26 +482,32 @@ mod tests {
         ] {
             let mut plan = plan_at(&r, &q, 23);
             let before = plan.clone();
-            let done = r.refine(&mut plan, &vec![human.clone(); 23], kind);
+            let done = r.refine(&mut plan, &vec![human.clone(); 23], kind, None);
             assert!(done.is_none(), "{kind:?}: {done:?}");
             assert_eq!(plan, before);
         }
         // Malformed forecasts (too short, too few joints, NaN) are refused, never a panic.
         let mut plan = plan_at(&r, &q, 23);
         assert!(r
-            .refine(&mut plan, &vec![near.clone(); 5], Interaction::Handshake)
+            .refine(
+                &mut plan,
+                &vec![near.clone(); 5],
+                Interaction::Handshake,
+                None
+            )
             .is_none());
         assert!(r
             .refine(
                 &mut plan,
                 &vec![near[..10].to_vec(); 23],
-                Interaction::Handshake
+                Interaction::Handshake,
+                None
             )
             .is_none());
         let mut nan = near.clone();
         nan[21] = [f64::NAN; 3];
         assert!(r
-            .refine(&mut plan, &vec![nan; 23], Interaction::Handshake)
+            .refine(&mut plan, &vec![nan; 23], Interaction::Handshake, None)
             .is_none());
     }
 }

@@ -104,6 +104,8 @@ struct Slot {
     prompt: String,
     /// The announced interaction (contact refinement applies to contact ones).
     interaction: Option<Interaction>,
+    /// The arm the last contact refinement used (left = true).
+    contact_arm: Option<bool>,
     proxy: RobotProxy,
     /// The robot's measured joints (robot-agent models).
     robot_q: [f64; ROBOT_STATE],
@@ -244,6 +246,7 @@ impl ForecastServer {
             pair: None,
             prompt,
             interaction: None,
+            contact_arm: None,
             proxy: RobotProxy::new(model.clone()),
             robot_q: {
                 let home = echo_robot::home_pose();
@@ -437,6 +440,7 @@ impl ForecastServer {
                 stamp,
                 slot.pair.map(|p| p.0).unwrap_or(0),
                 slot.interaction,
+                slot.contact_arm,
             ));
         }
         if robots.is_empty() {
@@ -485,7 +489,7 @@ impl ForecastServer {
         let per = cfg.pred * (fa + fb);
         let mut res = Vec::with_capacity(b);
         let names = &self.robot_names;
-        for (i, ((robot, stamp, partner, interaction), c)) in
+        for (i, ((robot, stamp, partner, interaction, arm), c)) in
             robots.into_iter().zip(canon).enumerate()
         {
             let human: Vec<Vec<[f64; 3]>> = (0..cfg.pred)
@@ -526,9 +530,13 @@ impl ForecastServer {
                 }
             });
             if let (Some(p), Some(reach), Some(kind)) = (&mut plan, &self.contact, interaction) {
-                if let Some(done) = reach.refine(p, &human, kind) {
-                    tracing::debug!(?done, "contact refinement");
+                let done = reach.refine(p, &human, kind, arm);
+                if let Some(d) = &done {
+                    tracing::debug!(?d, "contact refinement");
                     self.counters.contact_refined += 1;
+                }
+                if let Some(slot) = self.slots.get_mut(&robot) {
+                    slot.contact_arm = done.map(|d| d.left_arm).or(slot.contact_arm);
                 }
             }
             self.counters.forecasts += 1;
