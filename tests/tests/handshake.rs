@@ -1,42 +1,36 @@
-//! A scripted handshake end to end, as separate processes over Zenoh on loopback: mock
-//! perception plays person A of a test-split handshake to the robot (which stands where person B
-//! stood) → perception bridge → HRI forecaster (the shipped `models/hri`) → safety → simulated
-//! robot. The robot's gripper must come closer to the partner's hand than the retargeted
-//! reference alone would (B's motion retargeted and played from the same spot), and no command
-//! may break a joint limit or move a robot part into the partner's head clearance.
+//! The handshake scenario end to end, as separate processes over Zenoh on loopback: mock
+//! perception plays the partner of `echo_sim::mission` "handshake" (person A of a test-split
+//! handshake, who holds the hand out; the robot stands where person B stood) → perception bridge
+//! → HRI forecaster (the shipped `models/hri`, plans refined to reach an offered hand) → safety
+//! → simulated robot. The robot's gripper must reach the partner's hand — surfaces touching
+//! (`S_0`) and within 1 cm for at least 0.5 s — through the safety service's contact mode, with
+//! every command inside the joint limits, no robot part inside half the head clearance or half
+//! the body clearance of the regions a handshake does not touch, and no e-stop.
 
 use std::time::Duration;
 
 use echo_bus::topics;
-use echo_motion::synth::{generate, Split};
-use echo_msgs::{now_ns, ControlMode, Header, Interaction, InteractionIntent, SafetyState};
-use echo_retarget::hri::{convert, gripper_reach, reference_reach, Reach};
-use echo_retarget::retargeter::Retargeter;
+use echo_eval::behaviour::{contact, CONTACT_HOLD_S};
+use echo_motion::sensors::{body_capsules, BodyPart};
+use echo_msgs::{now_ns, Header, InteractionIntent, SafetyState};
+use echo_retarget::hri::gripper_reach;
 use echo_robot::collision::RobotBody;
 use echo_robot::RobotModel;
+use echo_safety::config::SeparationConfig;
+use echo_sim::mission::Mission;
 use echo_system_tests::Harness;
 use nalgebra::{Isometry3, Vector3};
 
-/// A handshake of the test split (seeds never trained on).
-const CLIP: (Split, u64) = (Split::Test, 0);
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn the_robot_reaches_for_the_offered_hand_closer_than_the_reference() -> anyhow::Result<()> {
+async fn the_robot_shakes_the_offered_hand_within_its_limits_and_clearances() -> anyhow::Result<()>
+{
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let model = RobotModel::tiago_dual();
-    let clip = generate(&CLIP.0.clip(CLIP.1));
-    assert_eq!(
-        format!("{:?}", clip.params.kind),
-        "Handshake",
-        "the scripted clip"
-    );
-
-    // The retargeted reference alone, played from where the robot stands.
-    let retargeter = Retargeter::load(&root.join("models/retargeter"), model.clone())?;
-    let hri = convert(&clip, &retargeter)?;
-    let base = echo_sim::perception::robot_base_in_clip(&clip);
     let body = RobotBody::tiago(&model)?;
-    let reference = reference_reach(&hri, &retargeter, &model, &body, &base)?;
+    let mission = Mission::named("handshake").map_err(anyhow::Error::msg)?;
+    let seg = mission.segments[0].clone();
+    assert_eq!(format!("{:?}", seg.interaction), "Handshake");
+    let clearances = SeparationConfig::default();
 
     let mut h = Harness::new("sys-handshake", 5)?;
     h.spawn("mock-robot", "echoctl", &["mock-robot"])?;
@@ -61,36 +55,32 @@ async fn the_robot_reaches_for_the_offered_hand_closer_than_the_reference() -> a
         Duration::from_secs(60),
     )
     .await?;
-    // The partner starts once everything listens, and plays the clip once.
+    // The partner starts once everything listens, and plays the scenario once.
     let t0 = now_ns() + 1_000_000_000;
     h.spawn(
         "mock-perception",
         "echoctl",
         &[
             "mock-perception",
-            "--clip",
-            &format!("test:{}", CLIP.1),
-            "--robot-plays-b",
+            "--scenario",
+            "handshake",
             "--t0-ns",
             &t0.to_string(),
         ],
     )?;
 
     let mut q = None;
-    let (mut reach, mut head_m, mut frames) = (Reach::NONE, f64::INFINITY, 0usize);
+    let mut surface: Vec<(f64, f64)> = vec![];
+    let (mut head_m, mut body_m, mut frames) = (f64::INFINITY, f64::INFINITY, 0usize);
     let (mut points, mut violations, mut accepted, mut estopped) = (0usize, vec![], 0u64, false);
-    // From now: 1 s to the partner's start, the clip, then 0.5 s.
-    let clip_s = clip.frames.len() as f64 / echo_motion::synth::FPS;
-    let deadline = tokio::time::Instant::now() + Duration::from_secs_f64(1.5 + clip_s);
+    let deadline = tokio::time::Instant::now() + Duration::from_secs_f64(1.5 + mission.duration());
     while tokio::time::Instant::now() < deadline {
         prompt
             .put(InteractionIntent {
                 header: Header::new(robot.as_str(), "", ""),
-                text: "One person extends a handshake with their right hand, while the other \
-                       reciprocates with their own."
-                    .into(),
-                interaction: Interaction::Handshake,
-                mode: ControlMode::Forecast,
+                text: seg.text.clone(),
+                interaction: seg.interaction,
+                mode: echo_msgs::ControlMode::Forecast,
             })
             .await?;
         for _ in 0..10 {
@@ -115,13 +105,19 @@ async fn the_robot_reaches_for_the_offered_hand_closer_than_the_reference() -> a
                 };
                 let j: Vec<Vector3<f64>> =
                     t.pose.joints.iter().map(|p| Vector3::from(*p)).collect();
-                reach = reach.min(gripper_reach(&model, &body, q, &Isometry3::identity(), &j)?);
-                let head = echo_motion::sensors::body_capsules(&j)
-                    .into_iter()
-                    .find(|(p, _)| *p == echo_motion::sensors::BodyPart::Head);
-                if let Some((_, hc)) = head {
-                    for (_, c) in body.at(&model, q) {
-                        head_m = head_m.min(c.distance(&hc));
+                let time = (s.msg.header.stamp_ns as f64 - t0 as f64) / 1e9;
+                let reach = gripper_reach(&model, &body, q, &Isometry3::identity(), &j)?;
+                surface.push((time, reach.surface_m));
+                let robot_caps = body.at(&model, q);
+                for (part, hc) in body_capsules(&j) {
+                    let d = robot_caps
+                        .iter()
+                        .map(|(_, c)| c.distance(&hc))
+                        .fold(f64::INFINITY, f64::min);
+                    match part {
+                        BodyPart::Head => head_m = head_m.min(d),
+                        BodyPart::Hand(_) | BodyPart::Forearm(_) => {}
+                        _ => body_m = body_m.min(d),
                     }
                 }
                 frames += 1;
@@ -152,15 +148,13 @@ async fn the_robot_reaches_for_the_offered_hand_closer_than_the_reference() -> a
             }
         }
     }
+    let made = contact(&surface, seg.start_s);
     eprintln!(
-        "handshake: grasping frame within {:.3} m of the partner's wrist, gripper–hand surfaces \
-         {:.3} m (reference alone {:.3} m, {:.3} m); closest robot part to the partner's head \
-         {head_m:.3} m; {frames} partner frames, {accepted} plans accepted, {points} command \
-         points checked",
-        reach.grasp_to_wrist_m, reach.surface_m, reference.grasp_to_wrist_m, reference.surface_m
+        "handshake: {made:?}; closest robot part to the partner's head {head_m:.3} m, to the \
+         regions a handshake does not touch {body_m:.3} m; {frames} partner frames, {accepted} \
+         plans accepted, {points} command points checked"
     );
-    // 15 Hz perception over the clip; the forecaster plans at the same rate.
-    let expected = (clip_s * 15.0) as usize;
+    let expected = (mission.duration() * 15.0) as usize;
     assert!(
         frames > expected * 3 / 4,
         "only {frames} of {expected} partner frames"
@@ -170,9 +164,8 @@ async fn the_robot_reaches_for_the_offered_hand_closer_than_the_reference() -> a
         "safety accepted only {accepted} plans"
     );
     assert!(
-        reach.grasp_to_wrist_m < reference.grasp_to_wrist_m
-            && reach.surface_m < reference.surface_m,
-        "the robot's gripper reached {reach:?}, the reference alone {reference:?}"
+        made.made && made.held_s >= CONTACT_HOLD_S,
+        "no handshake: {made:?}"
     );
     assert!(
         violations.is_empty(),
@@ -182,8 +175,12 @@ async fn the_robot_reaches_for_the_offered_hand_closer_than_the_reference() -> a
     );
     assert!(points > 50 * expected, "only {points} command points");
     assert!(
-        head_m >= 0.15,
+        head_m >= clearances.head_clearance_m / 2.0,
         "a robot part came within {head_m:.3} m of the head"
+    );
+    assert!(
+        body_m >= clearances.body_clearance_m / 2.0,
+        "a robot part came within {body_m:.3} m of the partner's body"
     );
     assert!(!estopped);
     Ok(())

@@ -33,7 +33,7 @@ use crate::perception::{clip_partner_for_robot, Actor, Recorded};
 
 /// How long the partner holds out a hand for a handshake, a high five or a handover, waiting
 /// for the robot, s.
-pub const HOLD_S: f64 = 2.5;
+pub const HOLD_S: f64 = 3.0;
 
 /// How much further from the robot the partner stands than from person B, m.
 pub const STANDOFF_M: f64 = 0.2;
