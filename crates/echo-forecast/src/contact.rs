@@ -91,13 +91,13 @@ pub struct ContactReach {
     body: RobotBody,
     cfg: ContactConfig,
     /// Model indices of each arm's seven joints (left, right).
-    arms: [[usize; 7]; 2],
+    pub(crate) arms: [[usize; 7]; 2],
 }
 
 /// The arm used last time is kept unless the other shoulder is this much nearer the hand, m.
 pub const ARM_SWITCH_M: f64 = 0.1;
 
-const SHOULDER: [&str; 2] = ["arm_left_1_link", "arm_right_1_link"];
+pub(crate) const SHOULDER: [&str; 2] = ["arm_left_1_link", "arm_right_1_link"];
 
 const GRASP: [&str; 2] = [
     "gripper_left_grasping_frame",
@@ -283,7 +283,13 @@ impl ContactReach {
         c + dir * (r - self.cfg.grasp_depth_m).max(0.0)
     }
 
-    fn grasp(&self, q: &JointValues, arm: usize) -> Vector3<f64> {
+    /// The robot model.
+    pub(crate) fn model(&self) -> &RobotModel {
+        &self.model
+    }
+
+    /// A grasping frame's position (left = 0, right = 1) at `q`.
+    pub(crate) fn grasp(&self, q: &JointValues, arm: usize) -> Vector3<f64> {
         self.model
             .fk(q, GRASP[arm])
             .map(|p| p.translation.vector)
@@ -291,7 +297,12 @@ impl ContactReach {
     }
 
     /// Damped least squares on the arm's joints from `start` towards `target`.
-    fn solve(&self, start: &JointValues, arm: usize, target: &Vector3<f64>) -> JointValues {
+    pub(crate) fn solve(
+        &self,
+        start: &JointValues,
+        arm: usize,
+        target: &Vector3<f64>,
+    ) -> JointValues {
         let mut q = start.clone();
         let names = self.model.actuated_joints();
         for _ in 0..self.cfg.iterations {

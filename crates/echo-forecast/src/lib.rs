@@ -3,6 +3,8 @@
 //! - [`contact`]: contact interactions (handshake, handover, high five) — a learned plan that
 //!   brings a gripper near the partner's forecast hand is refined by inverse kinematics so the
 //!   gripper reaches the hand;
+//! - [`gesture`]: waving back — the oscillation a regressed forecast averages out, added to the
+//!   arm the learned plan raises;
 //! - [`failover`]: which of a primary and its standbys serves a robot (lowest live rank);
 //! - [`history`]: a per-robot ring buffer of both agents at the model rate; short gaps are
 //!   filled by interpolation (and counted), long gaps or reordered frames reset or are rejected;
@@ -13,6 +15,7 @@
 
 pub mod contact;
 pub mod failover;
+pub mod gesture;
 pub mod history;
 pub mod proxy;
 pub mod server;

@@ -16,6 +16,7 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 use crate::contact::{ContactConfig, ContactReach};
+use crate::gesture::WaveBack;
 use crate::history::{
     Frame, History, HistoryError, Pair, Push, DEFAULT_MAX_AHEAD_MS, DEFAULT_RESYNC_AFTER_MS,
     ROBOT_STATE,
@@ -132,6 +133,8 @@ pub struct Counters {
     pub forecasts: u64,
     /// Robot plans refined to reach the partner's hand ([`crate::contact`]).
     pub contact_refined: u64,
+    /// Robot plans given a visible wave ([`crate::gesture`]).
+    pub wave_refined: u64,
 }
 
 /// Per-robot histories and one backend shared by all robots.
@@ -530,6 +533,10 @@ impl ForecastServer {
                 }
             });
             if let (Some(p), Some(reach), Some(kind)) = (&mut plan, &self.contact, interaction) {
+                if let Some(w) = WaveBack::new(reach).refine(p, stamp as f64 / 1e9, kind) {
+                    tracing::debug!(?w, "wave back");
+                    self.counters.wave_refined += 1;
+                }
                 let done = reach.refine(p, &human, kind, arm);
                 if let Some(d) = &done {
                     tracing::debug!(?d, "contact refinement");

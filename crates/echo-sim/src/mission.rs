@@ -38,6 +38,11 @@ pub const HOLD_S: f64 = 3.0;
 /// How much further from the robot the partner stands than from person B, m.
 pub const STANDOFF_M: f64 = 0.2;
 
+/// A waving partner stands this much further away than person B did, m: waving is a greeting
+/// across a distance, and a robot arm moving at waving speed keeps full speed only beyond the
+/// safety service's protective distance plus its slow zone (about 2.2 m).
+pub const WAVE_STANDOFF_M: f64 = 0.8;
+
 /// Time the partner takes between two interactions, s.
 pub const TRANSITION_S: f64 = 1.5;
 
@@ -139,7 +144,11 @@ impl Mission {
             else {
                 continue;
             };
-            let mut next = standoff(person.frames(), clip, STANDOFF_M);
+            let away = match clip.params.kind {
+                Interaction::Wave => WAVE_STANDOFF_M,
+                _ => STANDOFF_M,
+            };
+            let mut next = standoff(person.frames(), clip, away);
             if matches!(
                 clip.params.kind,
                 Interaction::Handshake | Interaction::HighFive | Interaction::Handover

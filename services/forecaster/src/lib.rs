@@ -339,6 +339,8 @@ pub mod edges {
     /// Robot plans refined to reach the partner's hand in a contact interaction (counted under
     /// `published`).
     pub const CONTACT: &str = "plan_contact_refined";
+    /// Robot plans given a visible wave (counted under `published`).
+    pub const WAVE: &str = "plan_wave_refined";
 }
 
 fn handle(server: &mut ForecastServer, stats: &Stats, input: Input) {
@@ -400,10 +402,14 @@ where
                 Err(_) => break,
             }
         }
-        let refined = server.counters().contact_refined;
+        let before = server.counters();
         let batch = server.run_batch();
-        for _ in refined..server.counters().contact_refined {
+        let after = server.counters();
+        for _ in before.contact_refined..after.contact_refined {
             stats.published(edges::CONTACT);
+        }
+        for _ in before.wave_refined..after.wave_refined {
+            stats.published(edges::WAVE);
         }
         for (robot, res) in batch {
             match res {

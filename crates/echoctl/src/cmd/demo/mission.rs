@@ -129,10 +129,19 @@ impl MissionObserver {
         let mut out = vec![];
         let mut lap = 0.0;
         while lap < end {
-            for seg in &self.mission.segments {
-                let (a, b) = (lap + seg.start_s, lap + seg.end_s);
+            for (i, seg) in self.mission.segments.iter().enumerate() {
+                // A response lags the partner: it is scored until the next interaction starts
+                // (the transition), or 1 s after the last one ends.
+                let until = self
+                    .mission
+                    .segments
+                    .get(i + 1)
+                    .map(|n| n.start_s)
+                    .unwrap_or(seg.end_s + 1.0);
+                let (a, b) = (lap + seg.start_s, lap + until);
                 // Only interactions seen from their start to (nearly) their end.
-                if a < 0.0 || b > end + 0.5 || !self.samples.iter().any(|s| s.t >= a) {
+                if a < 0.0 || lap + seg.end_s > end + 0.5 || !self.samples.iter().any(|s| s.t >= a)
+                {
                     continue;
                 }
                 out.push(behaviour::report(
