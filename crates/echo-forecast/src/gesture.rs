@@ -92,7 +92,7 @@ impl<'a> WaveBack<'a> {
             }
         }
         let (raised, arm) = best;
-        if !(raised > 0.0) {
+        if raised.is_nan() || raised <= 0.0 {
             return None;
         }
         let mut q_prev = values(&plan.points[0].positions);
