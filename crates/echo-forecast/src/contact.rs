@@ -97,12 +97,9 @@ pub struct ContactReach {
 /// The arm used last time is kept unless the other shoulder is this much nearer the hand, m.
 pub const ARM_SWITCH_M: f64 = 0.1;
 
-pub(crate) const SHOULDER: [&str; 2] = ["arm_left_1_link", "arm_right_1_link"];
+use echo_robot::SHOULDER_LINKS as SHOULDER;
 
-const GRASP: [&str; 2] = [
-    "gripper_left_grasping_frame",
-    "gripper_right_grasping_frame",
-];
+use echo_retarget::hri::GRASPING_FRAMES as GRASP;
 
 impl ContactReach {
     /// For `model` (TIAGo++ joint and frame names).

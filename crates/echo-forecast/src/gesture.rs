@@ -23,7 +23,8 @@
 use echo_msgs::{Interaction, RobotPlan};
 use nalgebra::Vector3;
 
-use crate::contact::{ContactReach, SHOULDER};
+use crate::contact::ContactReach;
+use echo_robot::SHOULDER_LINKS as SHOULDER;
 
 /// Side-to-side amplitude of the hand, m.
 pub const WAVE_AMPLITUDE_M: f64 = 0.15;

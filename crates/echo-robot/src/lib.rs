@@ -22,6 +22,9 @@ pub const HOME_ARM: [f64; 7] = [-1.1, 1.4679, 2.714, 1.7095, -1.5708, 1.3898, 0.
 /// Torso height of the home pose, metres.
 pub const HOME_TORSO: f64 = 0.15;
 
+/// The links at the base of each arm (left, right): the robot's shoulders.
+pub const SHOULDER_LINKS: [&str; 2] = ["arm_left_1_link", "arm_right_1_link"];
+
 /// (joint, value) pairs of the home pose: both arms at [`HOME_ARM`], torso at [`HOME_TORSO`].
 pub fn home_pose() -> Vec<(String, f64)> {
     let mut v = vec![("torso_lift_joint".to_string(), HOME_TORSO)];

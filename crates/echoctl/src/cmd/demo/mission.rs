@@ -9,11 +9,8 @@ use echo_robot::{JointValues, RobotModel};
 use echo_sim::mission::Mission;
 use nalgebra::{Isometry3, Vector3};
 
-const GRASP: [&str; 2] = [
-    "gripper_left_grasping_frame",
-    "gripper_right_grasping_frame",
-];
-const SHOULDER: [&str; 2] = ["arm_left_1_link", "arm_right_1_link"];
+use echo_retarget::hri::GRASPING_FRAMES as GRASP;
+use echo_robot::SHOULDER_LINKS as SHOULDER;
 
 /// Collects samples while the mission plays.
 pub struct MissionObserver {
