@@ -59,7 +59,14 @@ pub struct ForecasterConfig {
     /// seconds (0: the last frame, as in the paper). Real people carry momentum; the prior lets
     /// the network learn corrections to it instead of velocity itself.
     pub velocity_prior_s: f64,
+    /// With `velocity_prior_s`: the prior extrapolates a person's root (position and heading)
+    /// only, and holds the local pose (the 66 pelvis-relative joint values): limbs are not
+    /// predictable by momentum the way the body's travel is.
+    pub velocity_prior_root_only: bool,
 }
+
+/// Values of a person's local pose at the start of their features (22 joints × 3).
+const LOCAL_POSE: usize = 66;
 
 impl Default for ForecasterConfig {
     fn default() -> Self {
@@ -78,11 +85,25 @@ impl Default for ForecasterConfig {
             agent_features: [FEATURES, FEATURES],
             social_identity_init: false,
             velocity_prior_s: 0.0,
+            velocity_prior_root_only: false,
         }
     }
 }
 
 impl ForecasterConfig {
+    /// Gains of the velocity prior per predicted frame and value, row-major `pred × features`:
+    /// [`Self::prior_gains`] in every column, or only in a person's root columns (the last
+    /// [`crate::features::FEATURES`] − 66) with `velocity_prior_root_only`.
+    pub fn prior_gain_matrix(&self, features: usize) -> Vec<f32> {
+        let gains = self.prior_gains();
+        let root_only = self.velocity_prior_root_only && features == crate::features::FEATURES;
+        let mut m = Vec::with_capacity(self.pred * features);
+        for g in gains {
+            m.extend((0..features).map(|c| if root_only && c < LOCAL_POSE { 0.0 } else { g }));
+        }
+        m
+    }
+
     /// Gains of the velocity prior per predicted frame: `Σ_{i=1..k} r^i` (all zero without it).
     pub fn prior_gains(&self) -> Vec<f32> {
         if self.velocity_prior_s.is_nan() || self.velocity_prior_s <= 0.0 || !self.displacement {
@@ -425,8 +446,12 @@ impl Forecaster {
             let base = if self.cfg.velocity_prior_s > 0.0 {
                 let prev = x.narrow(1, n_obs - 2, 1)?;
                 let v = (&last - &prev)?; // (b, 1, f)
-                let g =
-                    Tensor::from_vec(self.cfg.prior_gains(), (1, self.cfg.pred, 1), x.device())?;
+                let f = x.dim(2)?;
+                let g = Tensor::from_vec(
+                    self.cfg.prior_gain_matrix(f),
+                    (1, self.cfg.pred, f),
+                    x.device(),
+                )?;
                 last.broadcast_add(&v.broadcast_mul(&g)?)?
             } else {
                 last
@@ -594,6 +619,49 @@ mod tests {
             .prior_gains()
             .iter()
             .all(|x| *x == 0.0));
+    }
+
+    #[test]
+    fn the_root_only_prior_holds_the_local_pose_and_extrapolates_the_root() {
+        let dev = Device::Cpu;
+        let vm = VarMap::new();
+        let cfg = ForecasterConfig {
+            velocity_prior_s: 0.4,
+            velocity_prior_root_only: true,
+            ..Default::default()
+        };
+        let m =
+            Forecaster::new(cfg.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev)).unwrap();
+        let obs = Tensor::randn(0f32, 1.0, (2, 2, cfg.obs, FEATURES), &dev).unwrap();
+        let y = m.forward(&obs, None).unwrap();
+        let last = obs.narrow(2, cfg.obs - 1, 1).unwrap();
+        let v = (&last - obs.narrow(2, cfg.obs - 2, 1).unwrap()).unwrap();
+        let g = cfg.prior_gain_matrix(FEATURES);
+        let want = last
+            .broadcast_add(
+                &v.broadcast_mul(&Tensor::from_vec(g, (1, 1, cfg.pred, FEATURES), &dev).unwrap())
+                    .unwrap(),
+            )
+            .unwrap();
+        let diff = |a: &Tensor, b: &Tensor| -> f32 {
+            (a - b)
+                .unwrap()
+                .abs()
+                .unwrap()
+                .max_all()
+                .unwrap()
+                .to_scalar()
+                .unwrap()
+        };
+        assert!(diff(&y, &want) < 1e-5);
+        // The local pose is the last frame's; the root moves.
+        let pose = |t: &Tensor| t.narrow(3, 0, LOCAL_POSE).unwrap();
+        let held = last.broadcast_as(y.shape()).unwrap().contiguous().unwrap();
+        assert!(diff(&pose(&y), &pose(&held)) < 1e-6);
+        let root = |t: &Tensor| t.narrow(3, LOCAL_POSE, FEATURES - LOCAL_POSE).unwrap();
+        assert!(diff(&root(&y), &root(&held)) > 0.1);
+        // Other feature sizes (a robot agent) get the prior in every column.
+        assert!(cfg.prior_gain_matrix(20).iter().all(|x| *x > 0.0));
     }
 
     #[test]

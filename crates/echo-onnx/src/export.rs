@@ -369,8 +369,9 @@ pub fn build(weights: HashMap<String, Tensor>, cfg: &ForecasterConfig) -> Result
         let base = if cfg.velocity_prior_s > 0.0 && cfg.displacement {
             let prev = g.slice(&x, 1, n_obs - 2, n_obs - 1);
             let v = g.op("Sub", &[&last, &prev], vec![]);
-            let gains = cfg.prior_gains();
-            let gk = g.constant_f32("prior_gains", &[1, pred, 1], &gains);
+            let f = cfg.agent_features[a];
+            let gains = cfg.prior_gain_matrix(f);
+            let gk = g.constant_f32(&format!("prior_gains.{a}"), &[1, pred, f as i64], &gains);
             let dv = g.op("Mul", &[&v, &gk], vec![]);
             g.op("Add", &[&last, &dv], vec![])
         } else {

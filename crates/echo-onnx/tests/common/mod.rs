@@ -22,8 +22,8 @@ pub fn random_weights(cfg: &ForecasterConfig) -> HashMap<String, Tensor> {
 }
 
 /// Small models of every switch the exporter handles: text token or not, DCT, sequential
-/// refinement, no displacement, no temporal MLP, no social rounds, the velocity prior, and a
-/// deeper combination.
+/// refinement, no displacement, no temporal MLP, no social rounds, the velocity prior (on every
+/// value, or on the root only), and a deeper combination.
 pub fn variants() -> Vec<ForecasterConfig> {
     let base = ForecasterConfig {
         d_model: 32,
@@ -59,6 +59,11 @@ pub fn variants() -> Vec<ForecasterConfig> {
         },
         ForecasterConfig {
             velocity_prior_s: 0.4,
+            ..base.clone()
+        },
+        ForecasterConfig {
+            velocity_prior_s: 0.4,
+            velocity_prior_root_only: true,
             ..base.clone()
         },
         ForecasterConfig {

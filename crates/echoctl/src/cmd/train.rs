@@ -139,6 +139,10 @@ pub struct Args {
     /// added to, s (0: the last observed frame, as in the paper).
     #[arg(long, default_value_t = 0.0)]
     pub velocity_prior_s: f64,
+    /// Forecaster with --velocity-prior-s: extrapolate each person's root (position and
+    /// heading) only and hold the local pose.
+    #[arg(long)]
+    pub velocity_prior_root_only: bool,
     /// Forecaster with --data: window stride of real captures, frames at 15 Hz (synthetic
     /// sources use 3).
     #[arg(long, default_value_t = 1)]
@@ -469,6 +473,7 @@ pub fn run(args: Args) -> Result<()> {
         text_dim: echo_text::MINILM_DIM,
         social_identity_init: args.social_init == SocialInit::Identity,
         velocity_prior_s: args.velocity_prior_s,
+        velocity_prior_root_only: args.velocity_prior_root_only,
         ..Default::default()
     };
     let mut t = TrainConfig {
