@@ -27,9 +27,9 @@ use crate::contact::ContactReach;
 use echo_robot::SHOULDER_LINKS as SHOULDER;
 
 /// Side-to-side amplitude of the hand, m.
-pub const WAVE_AMPLITUDE_M: f64 = 0.15;
+pub const WAVE_AMPLITUDE_M: f64 = 0.08;
 /// Wave frequency, Hz.
-pub const WAVE_HZ: f64 = 0.6;
+pub const WAVE_HZ: f64 = 0.8;
 /// While waving, the hand stays at least this far above the shoulder, m.
 pub const RAISE_RAMP_M: f64 = 0.1;
 
@@ -53,13 +53,16 @@ impl<'a> WaveBack<'a> {
         WaveBack { reach }
     }
 
-    /// Refine `plan` (stamped `stamp_s`, seconds on the sender's clock) for `interaction`.
-    /// `None`: not a wave, no arm raised in the plan, or unknown joints.
+    /// Refine `plan` (stamped `stamp_s`, seconds on the sender's clock) for `interaction`;
+    /// `partner_waving`: the partner has a hand above the shoulder now ([`hand_raised`]) — the
+    /// arm the plan holds highest then waves even if the plan does not raise it.
+    /// `None`: not a wave, no arm raised in the plan nor the partner's, or unknown joints.
     pub fn refine(
         &self,
         plan: &mut RobotPlan,
         stamp_s: f64,
         interaction: Interaction,
+        partner_waving: bool,
     ) -> Option<WaveRefinement> {
         if interaction != Interaction::Wave || plan.points.len() < 2 {
             return None;
@@ -93,7 +96,7 @@ impl<'a> WaveBack<'a> {
             }
         }
         let (raised, arm) = best;
-        if raised.is_nan() || raised <= 0.0 {
+        if raised.is_nan() || (raised <= 0.0 && !partner_waving) {
             return None;
         }
         let mut q_prev = values(&plan.points[0].positions);
@@ -121,6 +124,15 @@ impl<'a> WaveBack<'a> {
             raised_m: raised,
         })
     }
+}
+
+/// Whether a person (SMPL-22 joints) has a wrist above its shoulder.
+pub fn hand_raised(joints: &[[f64; 3]]) -> bool {
+    use echo_motion::skeleton::j;
+    joints.len() >= echo_motion::skeleton::NUM_JOINTS
+        && [(j::L_WRIST, j::L_SHOULDER), (j::R_WRIST, j::R_SHOULDER)]
+            .iter()
+            .any(|&(w, s)| joints[w][2] > joints[s][2])
 }
 
 #[cfg(test)]
@@ -185,7 +197,7 @@ mod tests {
         let raised = plan(&reach, 0.3);
         let mut p = raised.clone();
         let done = WaveBack::new(&reach)
-            .refine(&mut p, 100.0, Interaction::Wave)
+            .refine(&mut p, 100.0, Interaction::Wave, false)
             .expect("waves");
         assert!(!done.left_arm && done.raised_m > 0.15, "{done:?}");
         let ys: Vec<f64> = (1..p.points.len())
@@ -204,16 +216,40 @@ mod tests {
         // Other interactions leave the plan alone, and so does a plan with the arms down.
         let mut same = raised.clone();
         assert!(WaveBack::new(&reach)
-            .refine(&mut same, 100.0, Interaction::Handshake)
+            .refine(&mut same, 100.0, Interaction::Handshake, true)
             .is_none());
         assert_eq!(same, raised);
         let mut down = plan(&reach, -0.4);
         let before = down.clone();
-        if WaveBack::new(&reach)
-            .refine(&mut down, 100.0, Interaction::Wave)
-            .is_none()
-        {
-            assert_eq!(down, before);
-        }
+        assert!(WaveBack::new(&reach)
+            .refine(&mut down, 100.0, Interaction::Wave, false)
+            .is_none());
+        assert_eq!(down, before);
+        // The partner waving: the arm held highest is raised and waves.
+        let done = WaveBack::new(&reach)
+            .refine(&mut down, 100.0, Interaction::Wave, true)
+            .expect("answers the partner's wave");
+        let arm = usize::from(!done.left_arm);
+        let (_, z) = hand_y(&reach, &down, 20, arm);
+        let q = reach
+            .model()
+            .values_from(
+                down.joint_names
+                    .iter()
+                    .map(|n| n.as_str())
+                    .zip(down.points[20].positions.iter().copied()),
+            )
+            .unwrap();
+        let s = reach
+            .model()
+            .fk(&q, SHOULDER[arm])
+            .unwrap()
+            .translation
+            .vector;
+        assert!(
+            z > s.z,
+            "the hand rises above the shoulder: {z:.2} vs {:.2}",
+            s.z
+        );
     }
 }

@@ -16,7 +16,7 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 use crate::contact::{ContactConfig, ContactReach};
-use crate::gesture::WaveBack;
+use crate::gesture::{hand_raised, WaveBack};
 use crate::history::{
     Frame, History, HistoryError, Pair, Push, DEFAULT_MAX_AHEAD_MS, DEFAULT_RESYNC_AFTER_MS,
     ROBOT_STATE,
@@ -533,7 +533,8 @@ impl ForecastServer {
                 }
             });
             if let (Some(p), Some(reach), Some(kind)) = (&mut plan, &self.contact, interaction) {
-                if let Some(w) = WaveBack::new(reach).refine(p, stamp as f64 / 1e9, kind) {
+                let waving = human.first().is_some_and(|f| hand_raised(f));
+                if let Some(w) = WaveBack::new(reach).refine(p, stamp as f64 / 1e9, kind, waving) {
                     tracing::debug!(?w, "wave back");
                     self.counters.wave_refined += 1;
                 }
