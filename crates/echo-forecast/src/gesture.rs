@@ -4,7 +4,8 @@
 //! with the partner — but a forecast regressed over many waves averages their phases out: the
 //! raised hand barely moves from side to side (one joint swings 0.15–0.23 rad). [`WaveBack`]
 //! keeps the learned plan and adds the oscillation: when the plan raises an arm (its grasping
-//! frame above its shoulder at some point of the plan), that arm's joints at each plan point
+//! frame above its shoulder at some point of the plan) — or the partner has a hand above their
+//! shoulder, and then the arm the plan holds highest — that arm's joints at each plan point
 //! are solved by the same inverse kinematics as [`crate::contact`] for the learned hand
 //! position kept at least [`RAISE_RAMP_M`] above the shoulder and moved sideways (along the
 //! robot's y axis, across the partner's view) by
