@@ -583,36 +583,48 @@ mod tests {
     use super::*;
     use candle_nn::VarMap;
 
-    #[test]
-    fn untrained_with_the_velocity_prior_the_forecast_is_damped_velocity() {
+    /// An untrained model with `cfg` on random observations: its forecast, the last observed
+    /// frame, and what the prior's gain matrix says the forecast must be.
+    fn untrained_prior(cfg: &ForecasterConfig) -> (Tensor, Tensor, Tensor) {
         let dev = Device::Cpu;
         let vm = VarMap::new();
-        let cfg = ForecasterConfig {
-            velocity_prior_s: 0.4,
-            ..Default::default()
-        };
         let m =
             Forecaster::new(cfg.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev)).unwrap();
         let obs = Tensor::randn(0f32, 1.0, (2, 2, cfg.obs, FEATURES), &dev).unwrap();
         let y = m.forward(&obs, None).unwrap();
         let last = obs.narrow(2, cfg.obs - 1, 1).unwrap();
         let v = (&last - obs.narrow(2, cfg.obs - 2, 1).unwrap()).unwrap();
-        let g = cfg.prior_gains();
-        assert!(g.windows(2).all(|w| w[1] > w[0]) && g[0] > 0.8 && g[0] < 1.0);
-        let want = last
-            .broadcast_add(
-                &v.broadcast_mul(&Tensor::from_vec(g, (1, 1, cfg.pred, 1), &dev).unwrap())
-                    .unwrap(),
-            )
-            .unwrap();
-        let err: f32 = (y - want)
+        let g = Tensor::from_vec(
+            cfg.prior_gain_matrix(FEATURES),
+            (1, 1, cfg.pred, FEATURES),
+            &dev,
+        )
+        .unwrap();
+        let want = last.broadcast_add(&v.broadcast_mul(&g).unwrap()).unwrap();
+        (y, last, want)
+    }
+
+    fn max_abs_diff(a: &Tensor, b: &Tensor) -> f32 {
+        (a - b)
             .unwrap()
             .abs()
             .unwrap()
             .max_all()
             .unwrap()
             .to_scalar()
-            .unwrap();
+            .unwrap()
+    }
+
+    #[test]
+    fn untrained_with_the_velocity_prior_the_forecast_is_damped_velocity() {
+        let cfg = ForecasterConfig {
+            velocity_prior_s: 0.4,
+            ..Default::default()
+        };
+        let g = cfg.prior_gains();
+        assert!(g.windows(2).all(|w| w[1] > w[0]) && g[0] > 0.8 && g[0] < 1.0);
+        let (y, _, want) = untrained_prior(&cfg);
+        let err = max_abs_diff(&y, &want);
         assert!(err < 1e-5, "{err}");
         // Without it: the gains are zero.
         assert!(ForecasterConfig::default()
@@ -623,43 +635,19 @@ mod tests {
 
     #[test]
     fn the_root_only_prior_holds_the_local_pose_and_extrapolates_the_root() {
-        let dev = Device::Cpu;
-        let vm = VarMap::new();
         let cfg = ForecasterConfig {
             velocity_prior_s: 0.4,
             velocity_prior_root_only: true,
             ..Default::default()
         };
-        let m =
-            Forecaster::new(cfg.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev)).unwrap();
-        let obs = Tensor::randn(0f32, 1.0, (2, 2, cfg.obs, FEATURES), &dev).unwrap();
-        let y = m.forward(&obs, None).unwrap();
-        let last = obs.narrow(2, cfg.obs - 1, 1).unwrap();
-        let v = (&last - obs.narrow(2, cfg.obs - 2, 1).unwrap()).unwrap();
-        let g = cfg.prior_gain_matrix(FEATURES);
-        let want = last
-            .broadcast_add(
-                &v.broadcast_mul(&Tensor::from_vec(g, (1, 1, cfg.pred, FEATURES), &dev).unwrap())
-                    .unwrap(),
-            )
-            .unwrap();
-        let diff = |a: &Tensor, b: &Tensor| -> f32 {
-            (a - b)
-                .unwrap()
-                .abs()
-                .unwrap()
-                .max_all()
-                .unwrap()
-                .to_scalar()
-                .unwrap()
-        };
-        assert!(diff(&y, &want) < 1e-5);
+        let (y, last, want) = untrained_prior(&cfg);
+        assert!(max_abs_diff(&y, &want) < 1e-5);
         // The local pose is the last frame's; the root moves.
-        let pose = |t: &Tensor| t.narrow(3, 0, LOCAL_POSE).unwrap();
         let held = last.broadcast_as(y.shape()).unwrap().contiguous().unwrap();
-        assert!(diff(&pose(&y), &pose(&held)) < 1e-6);
+        let pose = |t: &Tensor| t.narrow(3, 0, LOCAL_POSE).unwrap();
+        assert!(max_abs_diff(&pose(&y), &pose(&held)) < 1e-6);
         let root = |t: &Tensor| t.narrow(3, LOCAL_POSE, FEATURES - LOCAL_POSE).unwrap();
-        assert!(diff(&root(&y), &root(&held)) > 0.1);
+        assert!(max_abs_diff(&root(&y), &root(&held)) > 0.1);
         // Other feature sizes (a robot agent) get the prior in every column.
         assert!(cfg.prior_gain_matrix(20).iter().all(|x| *x > 0.0));
     }
