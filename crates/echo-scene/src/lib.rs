@@ -17,7 +17,8 @@
 //!
 //! Viewers: [`render`] rasterises scenes from a fixed side view into an animated GIF
 //! ([`render_recording`]); with the `foxglove` feature (default), [`foxglove`] writes MCAP files
-//! Foxglove draws in 3D and serves scenes live over the Foxglove WebSocket protocol.
+//! Foxglove draws in 3D and serves scenes live over the Foxglove WebSocket protocol; with the
+//! `web` feature (default), [`web`] serves a three.js page that follows the scenes in a browser.
 
 pub mod builder;
 mod font;
@@ -27,6 +28,8 @@ pub mod geometry;
 pub mod render;
 pub mod scene;
 pub mod style;
+#[cfg(feature = "web")]
+pub mod web;
 
 pub use builder::{Input, InputStats, SceneBuilder, SceneOptions};
 pub use render::{render_recording, CameraView, RenderOptions, RenderSummary};
@@ -72,6 +75,10 @@ pub enum SceneError {
     #[cfg(feature = "foxglove")]
     #[error("writing MCAP: {0}")]
     Mcap(#[from] mcap::McapError),
+    /// The browser viewer's server failed.
+    #[cfg(feature = "web")]
+    #[error("viewer server: {0}")]
+    Web(String),
     /// The Foxglove SDK reported an error.
     #[cfg(feature = "foxglove")]
     #[error("foxglove: {0}")]

@@ -1,6 +1,6 @@
 //! `echoctl`: Echo's command-line tool.
 //!
-//! Lifecycle: `demo`, `up`. Monitoring: `monitor`, `list`, `record`, `replay`, `scene`. Stand-ins: `mock-perception`, `mock-robot`.
+//! Lifecycle: `demo`, `up`. Monitoring: `monitor`, `list`, `record`, `replay`, `scene`, `view`. Stand-ins: `mock-perception`, `mock-robot`.
 //! Models and data: `data`, `train`, `eval`, `export`. Measurement: `bench`. Network: `router`.
 
 use anyhow::Result;
@@ -53,6 +53,10 @@ enum Command {
     /// Foxglove (`live`).
     #[command(display_order = 14, subcommand)]
     Scene(cmd::scene::Verb),
+    /// Watch the robot live in a browser: serves a three.js page that follows the bus
+    /// (http://localhost:8080).
+    #[command(display_order = 15)]
+    View(cmd::scene::ViewArgs),
     /// Run a Zenoh router (the same engine as zenohd, from this binary).
     #[command(display_order = 50)]
     Router(cmd::router::Args),
@@ -112,6 +116,10 @@ async fn main() -> Result<()> {
         Command::Scene(v) => {
             telemetry::init();
             cmd::scene::run(v).await
+        }
+        Command::View(a) => {
+            telemetry::init();
+            cmd::scene::view(a).await
         }
         Command::Router(a) => {
             let _denied = cmd::router::init_logging();

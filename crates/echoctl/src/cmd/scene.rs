@@ -1,5 +1,5 @@
 //! `echoctl scene`: Echo in 3D — a recording as a Foxglove MCAP or an animated GIF, or the live
-//! bus as a Foxglove WebSocket server.
+//! bus as a Foxglove WebSocket server; `echoctl view`: the live bus in a browser.
 
 use std::path::PathBuf;
 use std::time::Duration;
@@ -8,6 +8,7 @@ use anyhow::{anyhow, Context, Result};
 use echo_bus::{keys, shutdown, Bus, BusArgs};
 use echo_msgs::now_ns;
 use echo_scene::foxglove::{convert_recording, FoxgloveOptions, LiveServer};
+use echo_scene::web::WebViewer;
 use echo_scene::{render_recording, RenderOptions, SceneBuilder};
 
 /// Scene verbs.
@@ -122,19 +123,11 @@ fn gif(a: GifArgs) -> Result<()> {
 }
 
 async fn live(a: LiveArgs) -> Result<()> {
-    if !(a.hz.is_finite() && a.hz > 0.0 && a.hz <= 1000.0) {
-        return Err(anyhow!("--hz must be in (0, 1000], got {}", a.hz));
-    }
+    check_hz(a.hz)?;
     let bus = Bus::open(&a.bus, "echoctl-scene").await?;
     let server = LiveServer::start(&a.host, a.port)
         .await
         .with_context(|| format!("serving Foxglove on {}:{}", a.host, a.port))?;
-    let key = keys::robot_all(bus.robot());
-    let sub = bus
-        .session()
-        .declare_subscriber(key.as_str())
-        .await
-        .map_err(|e| anyhow!("subscribing to {key}: {e}"))?;
     println!(
         "Foxglove: open connection ws://{}:{} (robot {}); Ctrl-C to stop",
         if a.host == "0.0.0.0" {
@@ -145,12 +138,120 @@ async fn live(a: LiveArgs) -> Result<()> {
         server.port(),
         bus.robot()
     );
+    let builder = follow(
+        &bus,
+        a.hz,
+        a.seconds,
+        |key, payload, t| server.publish_raw(key, payload, t),
+        |builder, t| server.publish(builder, t),
+    )
+    .await?;
+    let stats = builder.stats();
+    println!(
+        "served {} messages ({} malformed) to {} client(s)",
+        stats.accepted.values().sum::<u64>(),
+        stats.rejected_total(),
+        server.clients()
+    );
+    server.stop().await;
+    bus.close().await
+}
+
+/// Options of `echoctl view`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ViewArgs {
+    /// Network.
+    #[command(flatten)]
+    pub bus: BusArgs,
+    /// HTTP port (0: any free port; the address is printed).
+    #[arg(long, default_value_t = 8080)]
+    pub port: u16,
+    /// Address to listen on (0.0.0.0 to serve other machines).
+    #[arg(long, default_value = "127.0.0.1")]
+    pub host: String,
+    /// Scene updates per second.
+    #[arg(long, default_value_t = 15.0)]
+    pub hz: f64,
+    /// Directory holding three.js (`three.module.js`, `OrbitControls.js`; default: found by
+    /// `scripts/setup`'s `.cache/web`).
+    #[arg(long)]
+    pub assets: Option<PathBuf>,
+    /// Stop after this many seconds (default: until Ctrl-C).
+    #[arg(long)]
+    pub seconds: Option<f64>,
+}
+
+/// `echoctl view`: the live bus in a browser (a three.js page served from this process).
+pub async fn view(a: ViewArgs) -> Result<()> {
+    check_hz(a.hz)?;
+    let assets = a.assets.clone().or_else(echo_scene::web::locate_assets);
+    if assets.is_none() {
+        eprintln!(
+            "warning: three.js not found (looked in {}); run scripts/setup — the page will say so",
+            echo_scene::web::asset_dirs()
+                .iter()
+                .map(|d| d.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    let bus = Bus::open(&a.bus, "echoctl-view").await?;
+    let server = WebViewer::start(&a.host, a.port, assets.as_deref())
+        .await
+        .with_context(|| format!("serving the viewer on {}:{}", a.host, a.port))?;
+    // Tests and scripts read this line for the address.
+    println!(
+        "viewer: open {} (robot {}); Ctrl-C to stop",
+        server.url(),
+        bus.robot()
+    );
+    let builder = follow(
+        &bus,
+        a.hz,
+        a.seconds,
+        |_, _, _| {},
+        |builder, t| server.publish(&builder.scene(t)),
+    )
+    .await?;
+    let stats = builder.stats();
+    println!(
+        "viewer: {} messages ({} malformed), {} scenes, {} page polls",
+        stats.accepted.values().sum::<u64>(),
+        stats.rejected_total(),
+        server.published(),
+        server.polls()
+    );
+    server.stop().await;
+    bus.close().await
+}
+
+fn check_hz(hz: f64) -> Result<()> {
+    if !(hz.is_finite() && hz > 0.0 && hz <= 1000.0) {
+        return Err(anyhow!("--hz must be in (0, 1000], got {hz}"));
+    }
+    Ok(())
+}
+
+/// Follow the robot's bus keys into a [`SceneBuilder`] until Ctrl-C or `seconds`: every message
+/// goes to `on_message` (key, payload, receive time), and `hz` times a second `on_tick` gets
+/// the builder.
+async fn follow(
+    bus: &Bus,
+    hz: f64,
+    seconds: Option<f64>,
+    on_message: impl Fn(&str, &[u8], u64),
+    on_tick: impl Fn(&SceneBuilder, u64),
+) -> Result<SceneBuilder> {
+    let key = keys::robot_all(bus.robot());
+    let sub = bus
+        .session()
+        .declare_subscriber(key.as_str())
+        .await
+        .map_err(|e| anyhow!("subscribing to {key}: {e}"))?;
     let mut builder = SceneBuilder::new().for_robot(bus.robot().as_str());
-    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / a.hz));
+    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / hz));
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-    let deadline = a
-        .seconds
-        .map(|s| tokio::time::Instant::now() + Duration::from_secs_f64(s));
+    let deadline = seconds.map(|s| tokio::time::Instant::now() + Duration::from_secs_f64(s));
     let mut stop = shutdown::on_signals();
     loop {
         tokio::select! {
@@ -159,23 +260,15 @@ async fn live(a: LiveArgs) -> Result<()> {
                     let t = now_ns();
                     let payload = s.payload().to_bytes();
                     builder.on_message_at(s.key_expr().as_str(), &payload, Some(t));
-                    server.publish_raw(s.key_expr().as_str(), &payload, t);
+                    on_message(s.key_expr().as_str(), &payload, t);
                 }
                 Err(_) => break,
             },
-            _ = tick.tick() => server.publish(&builder, now_ns()),
+            _ = tick.tick() => on_tick(&builder, now_ns()),
             _ = stop.wait() => break,
             _ = async { match deadline { Some(d) => tokio::time::sleep_until(d).await, None => std::future::pending().await } } => break,
         }
     }
-    let stats = builder.stats();
-    println!(
-        "served {} messages ({} malformed) to {} client(s)",
-        stats.accepted.values().sum::<u64>(),
-        stats.rejected_total(),
-        server.clients()
-    );
     drop(sub);
-    server.stop().await;
-    bus.close().await
+    Ok(builder)
 }

@@ -1,0 +1,204 @@
+//! The built-in browser viewer in a real headless browser: `echoctl view` follows a live bus
+//! (mock perception playing two people walking past each other → perception bridge, simulated
+//! robot) as a separate process, and Debian's
+//! chromium loads its page (three.js from `scripts/setup`'s `.cache/web`, WebGL through
+//! SwiftShader). The page's status line must show scenes arriving and updating, the robot's
+//! capsules and the people's skeletons drawn, and a person moving. Without chromium or
+//! three.js the test says what is missing and skips (`scripts/setup` installs both where it can).
+//! `ECHO_VIEWER_SCREENSHOT=file.png` also saves a screenshot of the page.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use echo_system_tests::Harness;
+
+fn chromium() -> Option<PathBuf> {
+    if let Some(p) = std::env::var_os("ECHO_CHROMIUM") {
+        return Some(PathBuf::from(p));
+    }
+    let path = std::env::var_os("PATH")?;
+    ["chromium", "chromium-browser"].iter().find_map(|name| {
+        std::env::split_paths(&path)
+            .map(|d| d.join(name))
+            .find(|p| p.is_file())
+    })
+}
+
+fn three_js(root: &Path) -> Option<PathBuf> {
+    let dirs = [
+        std::env::var_os("ECHO_WEB_ASSETS").map(PathBuf::from),
+        std::env::var_os("ECHO_CACHE").map(|c| PathBuf::from(c).join("web")),
+        Some(root.join(".cache/web")),
+    ];
+    dirs.into_iter()
+        .flatten()
+        .find(|d| d.join("three.module.js").is_file() && d.join("OrbitControls.js").is_file())
+}
+
+/// Headless chromium with the flags a closed network and a container need.
+fn browser(exe: &Path, profile: &Path) -> Command {
+    let mut c = Command::new(exe);
+    c.args([
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--use-angle=swiftshader",
+        "--enable-unsafe-swiftshader",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--window-size=1280,720",
+    ])
+    .arg(format!("--user-data-dir={}", profile.display()));
+    c
+}
+
+/// The page's status line (`<pre id="status">…</pre>`) from a DOM dump.
+fn status(dom: &str) -> Option<String> {
+    let start = dom.find("<pre id=\"status\">")? + "<pre id=\"status\">".len();
+    let end = dom[start..].find("</pre>")? + start;
+    Some(dom[start..end].to_string())
+}
+
+/// `name=value` from the status line.
+fn field(status: &str, name: &str) -> Option<f64> {
+    let key = format!("{name}=");
+    let start = status.find(&key)? + key.len();
+    status[start..]
+        .split(|c: char| c.is_whitespace())
+        .next()?
+        .parse()
+        .ok()
+}
+
+/// `count/primitives` of an entity kind from the status line.
+fn entity(status: &str, kind: &str) -> (u32, u32) {
+    let key = format!("{kind} ");
+    let Some(start) = status.find(&key).map(|i| i + key.len()) else {
+        return (0, 0);
+    };
+    let item = status[start..].split([',', '\n']).next().unwrap_or("");
+    let mut it = item.split('/').map(|x| x.trim().parse().unwrap_or(0));
+    (it.next().unwrap_or(0), it.next().unwrap_or(0))
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_browser_viewer_draws_the_robot_and_the_person_and_follows_the_bus() -> Result<()> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let Some(exe) = chromium() else {
+        eprintln!("SKIPPED: no chromium (scripts/setup installs Debian's chromium where apt can; or set ECHO_CHROMIUM)");
+        return Ok(());
+    };
+    let Some(assets) = three_js(&root) else {
+        eprintln!("SKIPPED: three.js not in .cache/web (run scripts/setup)");
+        return Ok(());
+    };
+
+    let mut h = Harness::new("sys-viewer", 4)?;
+    h.spawn("mock-robot", "echoctl", &["mock-robot"])?;
+    h.spawn("perception-bridge", "perception-bridge", &[])?;
+    let assets_arg = assets.to_string_lossy().to_string();
+    h.spawn(
+        "view",
+        "echoctl",
+        &["view", "--port", "0", "--hz", "10", "--assets", &assets_arg],
+    )?;
+    let bus = h.bus("system-test").await?;
+    h.wait_alive(
+        &bus,
+        &["mock-robot", "perception-bridge"],
+        Duration::from_secs(60),
+    )
+    .await?;
+    h.spawn(
+        "mock-perception",
+        "echoctl",
+        &["mock-perception", "--clip", "test:11"],
+    )?;
+
+    // The viewer prints its address once it serves.
+    let started = Instant::now();
+    let url = loop {
+        let log = std::fs::read_to_string(h.log_dir().join("view.log")).unwrap_or_default();
+        if let Some(line) = log.lines().find(|l| l.starts_with("viewer: open ")) {
+            let url = line["viewer: open ".len()..]
+                .split_whitespace()
+                .next()
+                .unwrap_or_default()
+                .to_string();
+            break url;
+        }
+        if started.elapsed() > Duration::from_secs(60) {
+            bail!("the viewer did not start:\n{}", h.log_tail("view"));
+        }
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    };
+    // Let people and joint states reach the viewer.
+    tokio::time::sleep(Duration::from_secs(3)).await;
+
+    let profile = tempfile::tempdir()?;
+    let out = tokio::task::spawn_blocking({
+        let exe = exe.clone();
+        let url = url.clone();
+        let profile = profile.path().to_path_buf();
+        move || {
+            browser(&exe, &profile)
+                .args(["--virtual-time-budget=8000", "--dump-dom"])
+                .arg(&url)
+                .output()
+        }
+    })
+    .await?
+    .context("running chromium")?;
+    let dom = String::from_utf8_lossy(&out.stdout);
+    let Some(st) = status(&dom) else {
+        bail!(
+            "no status line in the page (chromium exit {:?}):\n{}\n{}",
+            out.status.code(),
+            &dom[..dom.len().min(2000)],
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    eprintln!("viewer status: {st}");
+    assert!(
+        dom.contains("<div id=\"error\"></div>"),
+        "the page reports an error: {st}"
+    );
+    assert_eq!(field(&st, "webgl"), Some(1.0), "no WebGL context: {st}");
+    assert_eq!(field(&st, "errors"), Some(0.0), "fetch errors: {st}");
+    let updates = field(&st, "updates").unwrap_or(0.0);
+    assert!(updates >= 5.0, "the page must keep updating: {st}");
+    let (robots, robot_prims) = entity(&st, "robot");
+    assert!(
+        robots == 1 && robot_prims >= 10,
+        "the robot's capsules: {st}"
+    );
+    // People: the partner once an interaction is announced, until then "person" entities.
+    let (partners, partner_prims) = entity(&st, "partner");
+    let (people, people_prims) = entity(&st, "person");
+    assert!(
+        partners + people >= 1 && partner_prims + people_prims >= 20 * (partners + people),
+        "the people's skeletons (a capsule per bone): {st}"
+    );
+    let moved = field(&st, "person_moved_m").unwrap_or(0.0);
+    assert!(moved > 0.02, "the person must move on the page: {st}");
+
+    if let Some(shot) = std::env::var_os("ECHO_VIEWER_SCREENSHOT") {
+        let shot = PathBuf::from(shot);
+        let profile = tempfile::tempdir()?;
+        let ok = browser(&exe, profile.path())
+            .args(["--virtual-time-budget=6000", "--hide-scrollbars"])
+            .arg(format!("--screenshot={}", shot.display()))
+            .arg(&url)
+            .output()?
+            .status
+            .success();
+        assert!(ok && shot.is_file(), "screenshot {}", shot.display());
+    }
+    assert!(h.is_running("view"), "the viewer must keep running");
+    Ok(())
+}
