@@ -302,6 +302,9 @@ pub struct Run<'a> {
     pub state: Option<PathBuf>,
     /// Continue from the saved state.
     pub resume: bool,
+    /// Start from these weights (`<stem>.safetensors` of a checkpoint of the same model) with a
+    /// fresh optimiser: fine-tuning. Ignored when resuming.
+    pub init: Option<PathBuf>,
     /// Training and validation windows from the dataset layer (`echo-data`); `None`: the
     /// generator's train and validation splits (`train_clips`, `val_clips`).
     pub data: Option<(Vec<Window>, Vec<Window>)>,
@@ -351,6 +354,11 @@ pub fn train(
     let mut varmap = VarMap::new();
     let vb = VarBuilder::from_varmap(&varmap, DType::F32, dev);
     let model = Forecaster::new(cfg.clone(), vb)?;
+    if let (Some(init), false) = (&run.init, run.resume) {
+        varmap
+            .load(init)
+            .map_err(|e| anyhow::anyhow!("initial weights {}: {e}", init.display()))?;
+    }
     let named = || -> anyhow::Result<Vec<(String, candle_core::Var)>> {
         Ok(varmap
             .data()
@@ -545,6 +553,7 @@ mod tests {
             text: None,
             state: Some(stem.to_path_buf()),
             resume,
+            init: None,
             data: None,
         };
         // One epoch, saved; the state is copied so two runs can resume from it.
@@ -584,6 +593,65 @@ mod tests {
     }
 
     #[test]
+    fn fine_tuning_starts_from_the_given_weights() {
+        let (cfg, mut t) = tiny();
+        t.epochs = 1;
+        let scratch = tempfile::tempdir().unwrap();
+        let base = scratch.path().join("base.safetensors");
+        let fresh = Run {
+            dev: Device::Cpu,
+            text: None,
+            state: None,
+            resume: false,
+            init: None,
+            data: None,
+        };
+        let (trained, log) = train(&cfg, &t, &fresh, &mut Quiet).unwrap();
+        trained.save(&base).unwrap();
+        // Zero epochs from the saved weights: the best weights are the starting ones, and
+        // validation starts where the first run ended, not where a fresh model starts.
+        let init = Run {
+            init: Some(base.clone()),
+            ..fresh
+        };
+        t.epochs = 1;
+        t.lr = 0.0;
+        let (tuned, tuned_log) = train(&cfg, &t, &init, &mut Quiet).unwrap();
+        let fresh = Run {
+            dev: Device::Cpu,
+            text: None,
+            state: None,
+            resume: false,
+            init: None,
+            data: None,
+        };
+        let (_, fresh_log) = train(&cfg, &t, &fresh, &mut Quiet).unwrap();
+        let d = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f64>();
+        assert!(
+            d(&tuned_log[0].val_jpe, &log[0].val_jpe) < 1e-6,
+            "{:?} vs {:?}",
+            tuned_log[0].val_jpe,
+            log[0].val_jpe
+        );
+        assert!(d(&fresh_log[0].val_jpe, &log[0].val_jpe) > 1e-3);
+        let w = |v: &VarMap| {
+            let data = v.data().lock().unwrap();
+            let mut k: Vec<_> = data.keys().cloned().collect();
+            k.sort();
+            data[&k[0]]
+                .as_tensor()
+                .flatten_all()
+                .unwrap()
+                .to_vec1::<f32>()
+                .unwrap()
+        };
+        assert_eq!(w(&tuned), w(&trained));
+        // Weights of another model are refused.
+        let other = ForecasterConfig { d_model: 32, ..cfg };
+        assert!(train(&other, &t, &init, &mut Quiet).is_err());
+    }
+
+    #[test]
     fn text_conditioned_training_runs_with_a_tiny_encoder() {
         let (mut cfg, mut t) = tiny();
         let enc = echo_text::tiny::encoder(8).unwrap();
@@ -594,6 +662,7 @@ mod tests {
             text: Some(&enc),
             state: None,
             resume: false,
+            init: None,
             data: None,
         };
         let (_, log) = train(&cfg, &t, &run, &mut Quiet).unwrap();

@@ -158,7 +158,10 @@ function apply(scene) {
   captionsEl.replaceChildren(...scene.captions.map((c) => {
     const d = document.createElement('div');
     d.textContent = c.text;
-    d.style.color = `rgb(${Math.round(c.color.r * 255)},${Math.round(c.color.g * 255)},${Math.round(c.color.b * 255)})`;
+    // Captions are styled for a light background (the GIF): dark ones are lightened here.
+    const lum = 0.2126 * c.color.r + 0.7152 * c.color.g + 0.0722 * c.color.b;
+    d.style.color = lum < 0.45 ? '#d8dde3'
+      : `rgb(${Math.round(c.color.r * 255)},${Math.round(c.color.g * 255)},${Math.round(c.color.b * 255)})`;
     return d;
   }));
   state.kinds = kinds;
@@ -178,13 +181,15 @@ function showStatus() {
   statusEl.textContent =
     `echo-viewer updates=${state.updates} seq=${state.seq} polls=${state.polls} errors=${state.errors}` +
     ` tracked=${state.trackedId || 'none'} person_moved_m=${moved().toFixed(3)} webgl=${renderer.getContext() ? 1 : 0}\n` +
-    `entities (count/primitives): ${kinds || 'none yet'}` + (state.lastError ? `\nlast error: ${state.lastError}` : '');
+    `entities (count/primitives): ${kinds || 'none yet'}`;
+  statusEl.title = state.lastError ? `last error: ${state.lastError}` : '';
 }
 
 async function poll() {
   try {
     state.polls += 1;
     const r = await fetch('/scene.json', { cache: 'no-store' });
+    state.lastError = '';
     if (r.status === 200) {
       const msg = await r.json();
       if (msg.seq !== state.seq) {

@@ -5,7 +5,8 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::{anyhow, Context, Result};
-use echo_bus::{keys, shutdown, Bus, BusArgs};
+use echo_bus::shutdown::{self, Shutdown};
+use echo_bus::{keys, Bus, BusArgs};
 use echo_msgs::now_ns;
 use echo_scene::foxglove::{convert_recording, FoxgloveOptions, LiveServer};
 use echo_scene::web::WebViewer;
@@ -142,6 +143,7 @@ async fn live(a: LiveArgs) -> Result<()> {
         &bus,
         a.hz,
         a.seconds,
+        shutdown::on_signals(),
         |key, payload, t| server.publish_raw(key, payload, t),
         |builder, t| server.publish(builder, t),
     )
@@ -183,6 +185,11 @@ pub struct ViewArgs {
 
 /// `echoctl view`: the live bus in a browser (a three.js page served from this process).
 pub async fn view(a: ViewArgs) -> Result<()> {
+    serve_view(a, shutdown::on_signals()).await
+}
+
+/// Serve the viewer until `stop` (or `--seconds`).
+pub async fn serve_view(a: ViewArgs, stop: Shutdown) -> Result<()> {
     check_hz(a.hz)?;
     let assets = a.assets.clone().or_else(echo_scene::web::locate_assets);
     if assets.is_none() {
@@ -209,6 +216,7 @@ pub async fn view(a: ViewArgs) -> Result<()> {
         &bus,
         a.hz,
         a.seconds,
+        stop,
         |_, _, _| {},
         |builder, t| server.publish(&builder.scene(t)),
     )
@@ -232,13 +240,14 @@ fn check_hz(hz: f64) -> Result<()> {
     Ok(())
 }
 
-/// Follow the robot's bus keys into a [`SceneBuilder`] until Ctrl-C or `seconds`: every message
+/// Follow the robot's bus keys into a [`SceneBuilder`] until `stop` or `seconds`: every message
 /// goes to `on_message` (key, payload, receive time), and `hz` times a second `on_tick` gets
 /// the builder.
 async fn follow(
     bus: &Bus,
     hz: f64,
     seconds: Option<f64>,
+    mut stop: Shutdown,
     on_message: impl Fn(&str, &[u8], u64),
     on_tick: impl Fn(&SceneBuilder, u64),
 ) -> Result<SceneBuilder> {
@@ -252,7 +261,6 @@ async fn follow(
     let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / hz));
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let deadline = seconds.map(|s| tokio::time::Instant::now() + Duration::from_secs_f64(s));
-    let mut stop = shutdown::on_signals();
     loop {
         tokio::select! {
             s = sub.recv_async() => match s {

@@ -5,7 +5,7 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use echo_eval::render::{chart, Curve, Panel};
 use echo_models::model::ForecasterConfig;
 use echo_models::train::{train, EpochLog, Progress, Run, TrainConfig};
@@ -95,6 +95,14 @@ pub struct Args {
     /// Continue an interrupted run from <out>.resume/.
     #[arg(long)]
     pub resume: bool,
+    /// Forecaster: fine-tune — start from this checkpoint's weights (stem of
+    /// `<stem>.safetensors` + `<stem>.json`) with a fresh optimiser; its architecture replaces
+    /// the architecture flags.
+    #[arg(long, conflicts_with = "resume")]
+    pub init: Option<PathBuf>,
+    /// Forecaster: peak learning rate (after warm-up).
+    #[arg(long, default_value_t = 1e-3)]
+    pub lr: f64,
     /// Only redraw <out>.loss.png from <out>.loss.csv.
     #[arg(long)]
     pub replot: bool,
@@ -476,7 +484,16 @@ pub fn run(args: Args) -> Result<()> {
         velocity_prior_root_only: args.velocity_prior_root_only,
         ..Default::default()
     };
+    if let Some(init) = &args.init {
+        let json = init.with_extension("json");
+        let meta: CheckpointMeta = serde_json::from_slice(
+            &std::fs::read(&json).with_context(|| format!("reading {}", json.display()))?,
+        )
+        .with_context(|| format!("parsing {}", json.display()))?;
+        model = meta.model;
+    }
     let mut t = TrainConfig {
+        lr: args.lr,
         train_clips: args.train_clips,
         max_minutes: args.max_minutes,
         epochs: args.epochs,
@@ -526,6 +543,7 @@ pub fn run(args: Args) -> Result<()> {
         text: text.as_ref(),
         state: Some(args.out.clone()),
         resume: args.resume,
+        init: args.init.as_ref().map(|s| s.with_extension("safetensors")),
         data,
     };
     let (varmap, log) = train(&model, &t, &run, &mut bar)?;

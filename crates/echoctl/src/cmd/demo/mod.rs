@@ -72,6 +72,12 @@ pub struct Args {
     /// Write no recording, Foxglove file or GIF.
     #[arg(long)]
     pub no_recording: bool,
+    /// Watch it live in a browser: serve the viewer (`echoctl view`) on --view-port.
+    #[arg(long)]
+    pub view: bool,
+    /// The viewer's HTTP port.
+    #[arg(long, default_value_t = 8080)]
+    pub view_port: u16,
     /// Write the summary as JSON to this file too.
     #[arg(long)]
     pub summary_json: Option<PathBuf>,
@@ -276,7 +282,8 @@ pub async fn run(args: Args) -> Result<()> {
     };
     std::fs::create_dir_all(&log_dir).with_context(|| format!("creating {}", log_dir.display()))?;
 
-    let mesh = loopback_mesh(&args.robot, available.len() + 1);
+    // One slot per service, the demo's own session, and the viewer's.
+    let mesh = loopback_mesh(&args.robot, available.len() + 2);
     let bus = Bus::open(&mesh[0], "echoctl-demo").await?;
     let robot = bus.robot().clone();
     let watch = bus.watch_alive(&keys::alive_all(&robot)).await?;
@@ -328,6 +335,22 @@ pub async fn run(args: Args) -> Result<()> {
         };
         running.push((name, r));
     }
+
+    // The browser viewer follows the bus from its own session, in this process.
+    let viewer = if args.view {
+        let (trigger, stop) = shutdown::pair();
+        let a = super::scene::ViewArgs {
+            bus: mesh[available.len() + 1].clone(),
+            port: args.view_port,
+            host: "127.0.0.1".into(),
+            hz: 15.0,
+            assets: None,
+            seconds: None,
+        };
+        Some((trigger, tokio::spawn(super::scene::serve_view(a, stop))))
+    } else {
+        None
+    };
 
     let names: Vec<&str> = available.iter().map(|(n, _)| *n).collect();
     let missing = watch
@@ -436,6 +459,14 @@ pub async fn run(args: Args) -> Result<()> {
     drop(watch);
     // Let the services publish their final status, then stop them.
     stop_all(running).await;
+    if let Some((trigger, handle)) = viewer {
+        trigger.trigger();
+        match handle.await {
+            Ok(Err(e)) => eprintln!("viewer: {e:#}"),
+            Err(e) => eprintln!("viewer: {e}"),
+            Ok(Ok(())) => {}
+        }
+    }
     tokio::time::sleep(Duration::from_millis(300)).await;
     let summary = summary(&observed.lock().unwrap_or_else(|e| e.into_inner()), elapsed);
     println!("{}", render_summary(&summary));
