@@ -231,3 +231,32 @@ impl Drop for Harness {
         }
     }
 }
+
+/// Check every point of a command against the robot's hard limits (position, velocity);
+/// returns the number of points checked and appends what is violated to `violations`.
+pub fn check_command_limits(
+    model: &echo_robot::RobotModel,
+    cmd: &echo_msgs::RobotCommand,
+    violations: &mut Vec<String>,
+) -> usize {
+    let mut points = 0;
+    for tr in &cmd.trajectories {
+        for p in &tr.points {
+            points += 1;
+            for (k, n) in tr.joint_names.iter().enumerate() {
+                let Some(l) = model.limits(n) else {
+                    violations.push(format!("unknown joint {n}"));
+                    continue;
+                };
+                let (x, v) = (p.positions[k], p.velocities[k]);
+                if x < l.lower - 1e-9 || x > l.upper + 1e-9 {
+                    violations.push(format!("{n} at {x:.4} outside its limits"));
+                }
+                if v.abs() > l.velocity * (1.0 + 1e-6) {
+                    violations.push(format!("{n} at {v:.4}/s over its limit"));
+                }
+            }
+        }
+    }
+    points
+}

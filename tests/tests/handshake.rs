@@ -18,7 +18,7 @@ use echo_robot::collision::RobotBody;
 use echo_robot::RobotModel;
 use echo_safety::config::SeparationConfig;
 use echo_sim::mission::Mission;
-use echo_system_tests::Harness;
+use echo_system_tests::{check_command_limits, Harness};
 use nalgebra::{Isometry3, Vector3};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -123,24 +123,7 @@ async fn the_robot_shakes_the_offered_hand_within_its_limits_and_clearances() ->
                 frames += 1;
             }
             for c in commands.drain() {
-                for tr in &c.msg.trajectories {
-                    for p in &tr.points {
-                        points += 1;
-                        for (k, n) in tr.joint_names.iter().enumerate() {
-                            let Some(l) = model.limits(n) else {
-                                violations.push(format!("unknown joint {n}"));
-                                continue;
-                            };
-                            let (x, v) = (p.positions[k], p.velocities[k]);
-                            if x < l.lower - 1e-9 || x > l.upper + 1e-9 {
-                                violations.push(format!("{n} at {x:.4} outside its limits"));
-                            }
-                            if v.abs() > l.velocity * (1.0 + 1e-6) {
-                                violations.push(format!("{n} at {v:.4}/s over its limit"));
-                            }
-                        }
-                    }
-                }
+                points += check_command_limits(&model, &c.msg, &mut violations);
             }
             for s in safety.drain() {
                 accepted = accepted.max(s.msg.counters.get("plan/accepted").copied().unwrap_or(0));

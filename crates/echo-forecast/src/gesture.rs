@@ -6,20 +6,24 @@
 //! keeps the learned plan and adds the oscillation: when the plan raises an arm (its grasping
 //! frame above its shoulder at some point of the plan) — or the partner has a hand above their
 //! shoulder, and then the arm the plan holds highest — that arm's joints at each plan point
-//! are solved by the same inverse kinematics as [`crate::contact`] for the learned hand
-//! position kept at least [`RAISE_RAMP_M`] above the shoulder and moved sideways (along the
-//! robot's y axis, across the partner's view) by
+//! are solved by the same inverse kinematics as [`crate::contact`] for a hand raised beside
+//! the head ([`WAVE_FORWARD_M`] forward, [`WAVE_OUT_M`] out and [`WAVE_UP_M`] up from its
+//! shoulder: clear of the head, the arm's joints away from their limits) and moved sideways
+//! (along the robot's y axis, across the partner's view) by
 //!
 //! ```text
 //! y(t) = A · sin(2π f t)
 //! ```
 //!
 //! Every plan is made again from the partner's latest frames: when the learned model stops
-//! raising the arm (the partner has stopped waving), the wave stops.
+//! raising the arm — but once a wave has started, the forecaster service keeps it going with
+//! the same arm while the interaction is a wave (`keep_arm`): the regressed plan dips now and
+//! then, and a wave cut short at each dip is not recognisable.
 //!
 //! with `t` the plan point's absolute time (successive plans continue one another's phase),
-//! amplitude [`WAVE_AMPLITUDE_M`] and frequency [`WAVE_HZ`] (people wave at 1–2 Hz). The safety
-//! service limits the motion like any other.
+//! amplitude [`WAVE_AMPLITUDE_M`] and frequency [`WAVE_HZ`] (people wave at 1–2 Hz; the arm's
+//! acceleration and jerk limits allow about half that). The safety service limits the motion
+//! like any other.
 
 use echo_msgs::{Interaction, RobotPlan};
 use nalgebra::Vector3;
@@ -28,11 +32,21 @@ use crate::contact::ContactReach;
 use echo_robot::SHOULDER_LINKS as SHOULDER;
 
 /// Side-to-side amplitude of the hand, m.
-pub const WAVE_AMPLITUDE_M: f64 = 0.08;
-/// Wave frequency, Hz.
-pub const WAVE_HZ: f64 = 0.8;
-/// While waving, the hand stays at least this far above the shoulder, m.
-pub const RAISE_RAMP_M: f64 = 0.1;
+pub const WAVE_AMPLITUDE_M: f64 = 0.06;
+/// Wave frequency, Hz: slower than people wave (1–2 Hz), because the arm's shoulder joints
+/// accelerate at most 1.5 rad/s² with a jerk of 7.5 rad/s³ (`echo_robot::limits`): at 0.6 Hz
+/// the hand's ±6 cm (0.85 m/s² at the hand, shared by the arm's seven joints) stay within
+/// them; at 0.8 Hz and ±8 cm they did not, and the safety filter cut the wave to a drift.
+pub const WAVE_HZ: f64 = 0.6;
+/// The waving hand's centre relative to its shoulder: forward, m. Of a grid of centres 0–0.4 m
+/// forward, out and up, this one keeps TIAGo++'s arm joints furthest from their limits over a
+/// whole wave (0.36 rad; the elbow reaches its limit at most others, and the safety filter
+/// brakes an arm that runs towards a limit).
+pub const WAVE_FORWARD_M: f64 = 0.4;
+/// … outwards (away from the body), m.
+pub const WAVE_OUT_M: f64 = 0.3;
+/// … up, m.
+pub const WAVE_UP_M: f64 = 0.3;
 
 /// What a wave refinement did.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -56,7 +70,9 @@ impl<'a> WaveBack<'a> {
 
     /// Refine `plan` (stamped `stamp_s`, seconds on the sender's clock) for `interaction`;
     /// `partner_waving`: the partner has a hand above the shoulder now ([`hand_raised`]) — the
-    /// arm the plan holds highest then waves even if the plan does not raise it.
+    /// arm the plan holds highest then waves even if the plan does not raise it. `keep_arm`
+    /// (left = true): the arm of a wave already under way, which goes on waving (plans that
+    /// raise both arms about as high would otherwise switch arms and cut every wave short).
     /// `None`: not a wave, no arm raised in the plan nor the partner's, or unknown joints.
     pub fn refine(
         &self,
@@ -64,6 +80,7 @@ impl<'a> WaveBack<'a> {
         stamp_s: f64,
         interaction: Interaction,
         partner_waving: bool,
+        keep_arm: Option<bool>,
     ) -> Option<WaveRefinement> {
         if interaction != Interaction::Wave || plan.points.len() < 2 {
             return None;
@@ -96,29 +113,107 @@ impl<'a> WaveBack<'a> {
                 }
             }
         }
-        let (raised, arm) = best;
+        let (mut raised, mut arm) = best;
+        let picked = arm;
         if raised.is_nan() || (raised <= 0.0 && !partner_waving) {
             return None;
         }
-        let mut q_prev = values(&plan.points[0].positions);
-        for k in 1..plan.points.len() {
+        if let Some(left) = keep_arm {
+            arm = if left { 0 } else { 1 };
+            raised = plan
+                .points
+                .iter()
+                .filter_map(|p| height(&values(&p.positions), arm))
+                .fold(f64::NEG_INFINITY, f64::max);
+        }
+        // The wave posture: one joint configuration, solved from the home pose (not from the
+        // measured joints, whose solutions jump between the redundant arm's branches while it
+        // moves, sending it back and forth). Every plan point starts from it, so the joints
+        // move by the least the hand's sideways swing needs.
+        let home = model
+            .values_from(
+                echo_robot::home_pose()
+                    .iter()
+                    .map(|(n, v)| (n.as_str(), *v)),
+            )
+            .ok()?;
+        let posture_of = |arm: usize| -> Option<(echo_robot::JointValues, f64)> {
+            // Out to the side: a raised hand in front of the face would swing into the head,
+            // and the arm's joints near their limits would be braked by the safety filter.
+            let side = if arm == 0 { 1.0 } else { -1.0 };
+            let shoulder = model.fk(&home, SHOULDER[arm]).ok()?.translation.vector;
+            let c0 = shoulder + Vector3::new(WAVE_FORWARD_M, side * WAVE_OUT_M, WAVE_UP_M);
+            let mut q = home.clone();
+            for _ in 0..60 {
+                q = self.reach.solve(&q, arm, &c0);
+            }
+            let err = (self.reach.grasp(&q, arm) - c0).norm();
+            Some((q, err))
+        };
+        // The arm the plan or the partner picked, unless it cannot reach the wave posture
+        // within its limits (then the other one).
+        let (mut posture, err) = posture_of(arm)?;
+        if err > 0.03 && keep_arm.is_none() {
+            if let Some((q, _)) = posture_of(1 - arm).filter(|(_, e)| *e < err) {
+                posture = q;
+                arm = 1 - arm;
+            }
+        }
+        let raised = if arm == picked {
+            raised
+        } else {
+            plan.points
+                .iter()
+                .filter_map(|p| height(&values(&p.positions), arm))
+                .fold(f64::NEG_INFINITY, f64::max)
+        };
+        // Out to the side: a raised hand in front of the face would swing into the head, and
+        // the arm's joints near their limits would be braked by the safety filter.
+        let side = if arm == 0 { 1.0 } else { -1.0 };
+        let centre = |q: &echo_robot::JointValues| -> Option<Vector3<f64>> {
+            let shoulder = model.fk(q, SHOULDER[arm]).ok()?.translation.vector;
+            Some(shoulder + Vector3::new(WAVE_FORWARD_M, side * WAVE_OUT_M, WAVE_UP_M))
+        };
+        let measured = values(&plan.points[0].positions);
+        let arm_joints = &self.reach.arms[arm];
+        let gap = arm_joints
+            .iter()
+            .map(|&j| (posture.0[j] - measured.0[j]).abs())
+            .fold(0.0, f64::max);
+        // Far from the wave, the arm gets there at TRANSITION_RAD_S (its largest joint move);
+        // near it, the plan starts on the wave itself: a plan that starts at the measured
+        // joints feeds the arm's lag back into its own reference.
+        let transition_s = if gap < START_TOLERANCE_RAD {
+            0.0
+        } else {
+            gap / TRANSITION_RAD_S
+        };
+        for k in 0..plan.points.len() {
             let learned = values(&plan.points[k].positions);
-            let h = height(&learned, arm)?;
-            // Once the plan raises the arm, the hand stays at least RAISE_RAMP_M above the
-            // shoulder over the plan's horizon, so the wave is not cut short.
-            let lift = (RAISE_RAMP_M - h).max(0.0);
-            let t = stamp_s + plan.points[k].t;
+            let t_plan = plan.points[k].t;
+            let t = stamp_s + t_plan;
             let y = WAVE_AMPLITUDE_M * (2.0 * std::f64::consts::PI * WAVE_HZ * t).sin();
-            let target = self.reach.grasp(&learned, arm) + Vector3::new(0.0, y, lift);
-            let solved = self.reach.solve(&q_prev, arm, &target);
+            let target = centre(&learned)? + Vector3::new(0.0, y, 0.0);
+            let mut seed = learned.clone();
+            for &j in arm_joints {
+                seed.0[j] = posture.0[j];
+            }
+            let solved = self.reach.solve(&seed, arm, &target);
+            // A constant pace (no ease-in): plans follow one another every frame and the
+            // safety service samples each near its start, so a ramp that starts flat would
+            // never get the arm moving.
+            let w = if transition_s > 0.0 {
+                (t_plan / transition_s).clamp(0.0, 1.0)
+            } else {
+                1.0
+            };
             let mut q = learned;
-            for &j in &self.reach.arms[arm] {
-                q.0[j] = solved.0[j];
+            for &j in arm_joints {
+                q.0[j] = measured.0[j] + w * (solved.0[j] - measured.0[j]);
             }
             for (slot, i) in plan.points[k].positions.iter_mut().zip(&index) {
                 *slot = q.0[*i];
             }
-            q_prev = q;
         }
         Some(WaveRefinement {
             left_arm: arm == 0,
@@ -126,6 +221,15 @@ impl<'a> WaveBack<'a> {
         })
     }
 }
+
+/// A wave plan starts on the wave itself, not at the measured joints, once the arm is this
+/// close to the wave posture on every joint, rad (the swing is about 0.1 rad a joint; the
+/// safety service accepts plans starting up to 0.35 rad from the measured joints).
+pub const START_TOLERANCE_RAD: f64 = 0.25;
+/// Further away, the plan moves the arm into the wave posture at this pace (its largest
+/// joint move), rad/s: a plan that asks for it at once sends the arm, through the safety
+/// filter's limits, on a wide detour.
+pub const TRANSITION_RAD_S: f64 = 0.8;
 
 /// Whether a person (SMPL-22 joints) has a wrist above its shoulder.
 pub fn hand_raised(joints: &[[f64; 3]]) -> bool {
@@ -198,7 +302,7 @@ mod tests {
         let raised = plan(&reach, 0.3);
         let mut p = raised.clone();
         let done = WaveBack::new(&reach)
-            .refine(&mut p, 100.0, Interaction::Wave, false)
+            .refine(&mut p, 100.0, Interaction::Wave, false, None)
             .expect("waves");
         assert!(!done.left_arm && done.raised_m > 0.15, "{done:?}");
         let ys: Vec<f64> = (1..p.points.len())
@@ -217,28 +321,56 @@ mod tests {
         // Other interactions leave the plan alone, and so does a plan with the arms down.
         let mut same = raised.clone();
         assert!(WaveBack::new(&reach)
-            .refine(&mut same, 100.0, Interaction::Handshake, true)
+            .refine(&mut same, 100.0, Interaction::Handshake, true, None)
             .is_none());
         assert_eq!(same, raised);
         let mut down = plan(&reach, -0.4);
         let before = down.clone();
         assert!(WaveBack::new(&reach)
-            .refine(&mut down, 100.0, Interaction::Wave, false)
+            .refine(&mut down, 100.0, Interaction::Wave, false, None)
             .is_none());
         assert_eq!(down, before);
-        // The partner waving: the arm held highest is raised and waves.
-        let done = WaveBack::new(&reach)
-            .refine(&mut down, 100.0, Interaction::Wave, true)
-            .expect("answers the partner's wave");
-        let arm = usize::from(!done.left_arm);
-        let (_, z) = hand_y(&reach, &down, 20, arm);
+        // The partner waving: the arm held highest is raised, at a pace the arm can follow,
+        // and waves. Plans follow one another, each starting where the last one was 0.5 s in.
+        let mut arm = 0;
+        let mut current = down.clone();
+        for round in 0..10 {
+            let mut p = down.clone();
+            let start = current.points[8].positions.clone();
+            for pt in &mut p.points {
+                pt.positions = start.clone();
+            }
+            let done = WaveBack::new(&reach)
+                .refine(
+                    &mut p,
+                    100.0 + 0.5 * round as f64,
+                    Interaction::Wave,
+                    true,
+                    None,
+                )
+                .expect("answers the partner's wave");
+            arm = usize::from(!done.left_arm);
+            for w in p.points.windows(2) {
+                let dt = w[1].t - w[0].t;
+                for (a, b) in w[0].positions.iter().zip(&w[1].positions) {
+                    assert!(
+                        (b - a).abs() / dt <= TRANSITION_RAD_S + 0.6,
+                        "a joint moves at {:.2} rad/s",
+                        (b - a).abs() / dt
+                    );
+                }
+            }
+            current = p;
+        }
+        let (_, z) = hand_y(&reach, &current, 20, arm);
         let q = reach
             .model()
             .values_from(
-                down.joint_names
+                current
+                    .joint_names
                     .iter()
                     .map(|n| n.as_str())
-                    .zip(down.points[20].positions.iter().copied()),
+                    .zip(current.points[20].positions.iter().copied()),
             )
             .unwrap();
         let s = reach
@@ -252,5 +384,25 @@ mod tests {
             "the hand rises above the shoulder: {z:.2} vs {:.2}",
             s.z
         );
+    }
+
+    #[test]
+    fn a_wave_under_way_keeps_its_arm() {
+        let reach = ContactReach::new(RobotModel::tiago_dual(), ContactConfig::default()).unwrap();
+        // The plan raises the right arm, but the left one is already waving: the left goes on.
+        let mut p = plan(&reach, 0.3);
+        let done = WaveBack::new(&reach)
+            .refine(&mut p, 100.0, Interaction::Wave, true, Some(true))
+            .expect("waves");
+        assert!(done.left_arm, "{done:?}");
+        let span = |arm: usize| {
+            let ys: Vec<f64> = (1..p.points.len())
+                .map(|k| hand_y(&reach, &p, k, arm).0)
+                .collect();
+            ys.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+                - ys.iter().cloned().fold(f64::INFINITY, f64::min)
+        };
+        assert!(span(0) > 1.5 * WAVE_AMPLITUDE_M, "left {:.3} m", span(0));
+        assert!(span(1) < 0.01, "the right arm holds: {:.3} m", span(1));
     }
 }

@@ -107,6 +107,9 @@ struct Slot {
     interaction: Option<Interaction>,
     /// The arm the last contact refinement used (left = true).
     contact_arm: Option<bool>,
+    /// The arm of the wave back under way (left = true): once started it goes on, with the
+    /// same arm, as long as the wave interaction lasts.
+    wave_arm: Option<bool>,
     proxy: RobotProxy,
     /// The robot's measured joints (robot-agent models).
     robot_q: [f64; ROBOT_STATE],
@@ -250,6 +253,7 @@ impl ForecastServer {
             prompt,
             interaction: None,
             contact_arm: None,
+            wave_arm: None,
             proxy: RobotProxy::new(model.clone()),
             robot_q: {
                 let home = echo_robot::home_pose();
@@ -533,10 +537,24 @@ impl ForecastServer {
                 }
             });
             if let (Some(p), Some(reach), Some(kind)) = (&mut plan, &self.contact, interaction) {
-                let waving = human.first().is_some_and(|f| hand_raised(f));
-                if let Some(w) = WaveBack::new(reach).refine(p, stamp as f64 / 1e9, kind, waving) {
+                // A wave back, once started (the partner's hand or the learned plan raised),
+                // goes on with the same arm while the interaction is a wave: the regressed plan
+                // dips now and then, and a wave that stops with it is no wave.
+                let under_way = self.slots.get(&robot).and_then(|s| s.wave_arm);
+                let partner_raised = human.first().is_some_and(|f| hand_raised(f));
+                let waved = WaveBack::new(reach).refine(
+                    p,
+                    stamp as f64 / 1e9,
+                    kind,
+                    partner_raised || under_way.is_some(),
+                    under_way,
+                );
+                if let Some(w) = &waved {
                     tracing::debug!(?w, "wave back");
                     self.counters.wave_refined += 1;
+                }
+                if let Some(slot) = self.slots.get_mut(&robot) {
+                    slot.wave_arm = waved.map(|w| w.left_arm);
                 }
                 let done = reach.refine(p, &human, kind, arm);
                 if let Some(d) = &done {
