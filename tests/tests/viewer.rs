@@ -57,9 +57,10 @@ fn browser(exe: &Path, profile: &Path) -> Command {
     c
 }
 
-/// The page's status line (`<pre id="status">…</pre>`) from a DOM dump.
+/// The page's status line (`<pre id="status" …>…</pre>`) from a DOM dump.
 fn status(dom: &str) -> Option<String> {
-    let start = dom.find("<pre id=\"status\">")? + "<pre id=\"status\">".len();
+    let tag = dom.find("<pre id=\"status\"")?;
+    let start = dom[tag..].find('>')? + tag + 1;
     let end = dom[start..].find("</pre>")? + start;
     Some(dom[start..end].to_string())
 }
