@@ -12,8 +12,7 @@ use std::time::Duration;
 use echo_bus::topics;
 use echo_eval::behaviour::wave;
 use echo_msgs::{now_ns, Header, InteractionIntent, SafetyState};
-use echo_retarget::hri::GRASPING_FRAMES;
-use echo_robot::{RobotModel, SHOULDER_LINKS};
+use echo_robot::{RobotModel, GRASPING_FRAMES, SHOULDER_LINKS};
 use echo_sim::mission::Mission;
 use echo_system_tests::{check_command_limits, Harness};
 

@@ -99,7 +99,7 @@ pub const ARM_SWITCH_M: f64 = 0.1;
 
 use echo_robot::SHOULDER_LINKS as SHOULDER;
 
-use echo_retarget::hri::GRASPING_FRAMES as GRASP;
+use echo_robot::GRASPING_FRAMES as GRASP;
 
 impl ContactReach {
     /// For `model` (TIAGo++ joint and frame names).
@@ -366,7 +366,7 @@ mod tests {
     use echo_msgs::{Header, PlanPoint};
 
     fn plan_at(reach: &ContactReach, q: &JointValues, n: usize) -> RobotPlan {
-        let names = echo_hri::data::robot_joint_names();
+        let names = echo_models::robot_agent::robot_joint_names();
         let positions: Vec<f64> = names
             .iter()
             .map(|n| q.0[reach.model.joint_index(n).unwrap()])

@@ -263,7 +263,7 @@ mod tests {
         for _ in 0..20 {
             q = reach.solve(&q, 1, &target);
         }
-        let names = echo_hri::data::robot_joint_names();
+        let names = echo_models::robot_agent::robot_joint_names();
         let positions: Vec<f64> = names
             .iter()
             .map(|n| q.0[model.joint_index(n).unwrap()])

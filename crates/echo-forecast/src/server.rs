@@ -22,7 +22,7 @@ use crate::history::{
     ROBOT_STATE,
 };
 use crate::proxy::RobotProxy;
-use echo_hri::data::{decode_robot, encode_robot, robot_joint_names, ROBOT_FEATURES};
+use echo_models::robot_agent::{decode_robot, encode_robot, robot_joint_names, ROBOT_FEATURES};
 use echo_msgs::{ControlMode, PlanPoint, RobotPlan};
 
 /// Serving settings.

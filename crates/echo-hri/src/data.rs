@@ -7,55 +7,15 @@ use echo_models::features::{encode, Canonical, FEATURES};
 use echo_motion::sensors::contact_and_proximity;
 use echo_motion::skeleton::{j, NUM_JOINTS};
 use echo_retarget::hri::HriClip;
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::Vector3;
 
-/// Robot joint values per frame (14 arm joints, torso, head pan, head tilt).
-pub const ROBOT_JOINTS: usize = 17;
-/// Robot features per frame: joints, base xyz (z = 0), heading quaternion.
-pub const ROBOT_FEATURES: usize = ROBOT_JOINTS + 3 + 4;
+pub use echo_models::robot_agent::{
+    decode_robot, encode_robot, robot_joint_names, ROBOT_FEATURES, ROBOT_JOINTS,
+};
 /// Observed frames.
 pub const OBS: usize = 8;
 /// Predicted frames (1.0 s).
 pub const PRED: usize = 15;
-
-/// The robot agent's joints, in feature order: 14 arm joints, torso, head pan, head tilt (the
-/// retargeter's output order).
-pub fn robot_joint_names() -> Vec<String> {
-    let mut v = echo_retarget::net::arm_joints();
-    v.extend(["torso_lift_joint", "head_1_joint", "head_2_joint"].map(String::from));
-    v
-}
-
-/// The robot's features in window frame `c`.
-pub fn encode_robot(c: &Canonical, q: &[f64], base: [f64; 3]) -> [f32; ROBOT_FEATURES] {
-    let mut f = [0f32; ROBOT_FEATURES];
-    for (k, v) in q.iter().take(ROBOT_JOINTS).enumerate() {
-        f[k] = *v as f32;
-    }
-    let p = c.world_to_window(&Vector3::new(base[0], base[1], 0.0));
-    let yaw = base[2] - c.yaw();
-    let h = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw);
-    let o = ROBOT_JOINTS;
-    f[o] = p.x as f32;
-    f[o + 1] = p.y as f32;
-    f[o + 2] = 0.0;
-    f[o + 3] = h.i as f32;
-    f[o + 4] = h.j as f32;
-    f[o + 5] = h.k as f32;
-    f[o + 6] = h.w as f32;
-    f
-}
-
-/// Robot joint values and base (world x, y, yaw) back from features.
-pub fn decode_robot(c: &Canonical, f: &[f32]) -> (Vec<f64>, [f64; 3]) {
-    let q = f[..ROBOT_JOINTS].iter().map(|v| *v as f64).collect();
-    let o = ROBOT_JOINTS;
-    let p = c.window_to_world(&Vector3::new(f[o] as f64, f[o + 1] as f64, 0.0));
-    let yaw = echo_models::features::quaternion(&f[o + 3..o + 7])
-        .euler_angles()
-        .2;
-    (q, [p.x, p.y, yaw + c.yaw()])
-}
 
 /// One HRI window.
 #[derive(Debug, Clone)]

@@ -6,6 +6,7 @@ pub mod features;
 pub mod model;
 pub mod optim;
 pub mod predictor;
+pub mod robot_agent;
 pub mod train;
 
 pub use backend::{Backend, CandleBackend, ZeroVelocityBackend};

@@ -153,10 +153,7 @@ pub fn social_scores(
 }
 
 /// The robot's grasping frames.
-pub const GRASPING_FRAMES: [&str; 2] = [
-    "gripper_left_grasping_frame",
-    "gripper_right_grasping_frame",
-];
+pub use echo_robot::GRASPING_FRAMES;
 
 /// How close the robot's grippers are to the partner's hands.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -9,13 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::human::HUMAN_FEATURES;
 
-/// The 14 arm joints the network outputs, left arm then right arm.
-pub fn arm_joints() -> Vec<String> {
-    ["left", "right"]
-        .iter()
-        .flat_map(|s| (1..=7).map(move |i| format!("arm_{s}_{i}_joint")))
-        .collect()
-}
+pub use echo_robot::arm_joints;
 
 /// The arm joints' values in the robot's home pose (the constant baseline of the evaluation).
 pub fn home_arms() -> Vec<f64> {

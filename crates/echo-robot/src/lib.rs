@@ -25,6 +25,28 @@ pub const HOME_TORSO: f64 = 0.15;
 /// The links at the base of each arm (left, right): the robot's shoulders.
 pub const SHOULDER_LINKS: [&str; 2] = ["arm_left_1_link", "arm_right_1_link"];
 
+/// The grippers' grasping frames (left, right): where a hand is held.
+pub const GRASPING_FRAMES: [&str; 2] = [
+    "gripper_left_grasping_frame",
+    "gripper_right_grasping_frame",
+];
+
+/// The 14 arm joints in the order every model uses: left 1–7, then right 1–7.
+pub fn arm_joints() -> Vec<String> {
+    ["left", "right"]
+        .iter()
+        .flat_map(|s| (1..=7).map(move |i| format!("arm_{s}_{i}_joint")))
+        .collect()
+}
+
+/// The joints a forecaster's robot agent reads and writes, in feature order: the 14 arm
+/// joints ([`arm_joints`]), torso, head pan, head tilt.
+pub fn robot_agent_joints() -> Vec<String> {
+    let mut v = arm_joints();
+    v.extend(["torso_lift_joint", "head_1_joint", "head_2_joint"].map(String::from));
+    v
+}
+
 /// (joint, value) pairs of the home pose: both arms at [`HOME_ARM`], torso at [`HOME_TORSO`].
 pub fn home_pose() -> Vec<(String, f64)> {
     let mut v = vec![("torso_lift_joint".to_string(), HOME_TORSO)];

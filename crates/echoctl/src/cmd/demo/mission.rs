@@ -9,7 +9,7 @@ use echo_robot::{JointValues, RobotModel};
 use echo_sim::mission::Mission;
 use nalgebra::{Isometry3, Vector3};
 
-use echo_retarget::hri::GRASPING_FRAMES as GRASP;
+use echo_robot::GRASPING_FRAMES as GRASP;
 use echo_robot::SHOULDER_LINKS as SHOULDER;
 
 /// Collects samples while the mission plays.
