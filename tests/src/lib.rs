@@ -260,3 +260,86 @@ pub fn check_command_limits(
     }
     points
 }
+
+/// The services of the human–robot pipeline the demo's scenarios run (their liveliness names).
+pub const HRI_SERVICES: [&str; 4] = ["mock-robot", "perception-bridge", "forecaster", "safety"];
+
+/// Start the human–robot pipeline as processes: the simulated robot, the perception bridge,
+/// the forecaster with the shipped HRI model (`models/hri`) and the safety service requiring
+/// the robot ([`HRI_SERVICES`]; the partner, mock perception, is started by the test).
+pub fn spawn_hri_pipeline(h: &mut Harness) -> Result<()> {
+    let hri_model = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/hri");
+    h.spawn("mock-robot", "echoctl", &["mock-robot"])?;
+    h.spawn("perception-bridge", "perception-bridge", &[])?;
+    h.spawn(
+        "forecaster",
+        "forecaster",
+        &["--model", hri_model.to_str().unwrap_or_default()],
+    )?;
+    h.spawn("safety", "safety", &["--require", "mock-robot"])
+}
+
+/// Announce a mission segment's interaction to the robot (text, type, forecast mode).
+pub async fn announce(
+    prompt: &echo_bus::Publisher<echo_msgs::InteractionIntent>,
+    robot: &str,
+    seg: &echo_sim::mission::Segment,
+) -> Result<()> {
+    prompt
+        .put(echo_msgs::InteractionIntent {
+            header: echo_msgs::Header::new(robot, "", ""),
+            text: seg.text.clone(),
+            interaction: seg.interaction,
+            mode: echo_msgs::ControlMode::Forecast,
+        })
+        .await?;
+    Ok(())
+}
+
+/// The joint values of a joint-state message (joints the model does not know are skipped).
+pub fn joint_values(
+    model: &echo_robot::RobotModel,
+    msg: &echo_msgs::JointState,
+) -> Result<echo_robot::JointValues> {
+    let pairs: Vec<(&str, f64)> = msg
+        .name
+        .iter()
+        .zip(&msg.position)
+        .filter(|(n, _)| model.joint_index(n).is_some())
+        .map(|(n, p)| (n.as_str(), *p))
+        .collect();
+    Ok(model.values_from(pairs)?)
+}
+
+/// A test's taps on the human–robot pipeline: the prompt it announces on and the inboxes it
+/// reads (joint states, people, commands, safety status, forecasts).
+pub struct HriTaps {
+    /// Announces the interaction.
+    pub prompt: echo_bus::Publisher<echo_msgs::InteractionIntent>,
+    /// The robot's measured joints.
+    pub states: echo_bus::Inbox<echo_msgs::JointState>,
+    /// The people the bridge tracks.
+    pub humans: echo_bus::Inbox<echo_msgs::HumanSkeletons>,
+    /// The safety service's commands.
+    pub commands: echo_bus::Inbox<echo_msgs::RobotCommand>,
+    /// The safety service's status.
+    pub safety: echo_bus::Inbox<echo_msgs::SafetyStatus>,
+    /// The forecaster's forecasts (with the robot's plans).
+    pub forecasts: echo_bus::Inbox<echo_msgs::Forecast>,
+}
+
+impl HriTaps {
+    /// Open every tap on `bus`'s robot.
+    pub async fn open(bus: &Bus) -> Result<HriTaps> {
+        use echo_bus::topics;
+        let r = bus.robot();
+        Ok(HriTaps {
+            prompt: bus.publisher(&topics::prompt(r)).await?,
+            states: bus.subscribe(&topics::robot_state(r)).await?,
+            humans: bus.subscribe(&topics::humans(r)).await?,
+            commands: bus.subscribe(&topics::command(r)).await?,
+            safety: bus.subscribe(&topics::safety_status(r)).await?,
+            forecasts: bus.subscribe(&topics::forecast(r)).await?,
+        })
+    }
+}

@@ -9,22 +9,23 @@
 
 use std::time::Duration;
 
-use echo_bus::topics;
 use echo_eval::behaviour::{contact, CONTACT_HOLD_S};
 use echo_motion::sensors::{body_capsules, BodyPart};
-use echo_msgs::{now_ns, Header, InteractionIntent, SafetyState};
+use echo_msgs::{now_ns, SafetyState};
 use echo_retarget::hri::gripper_reach;
 use echo_robot::collision::RobotBody;
 use echo_robot::RobotModel;
 use echo_safety::config::SeparationConfig;
 use echo_sim::mission::Mission;
-use echo_system_tests::{check_command_limits, Harness};
+use echo_system_tests::{
+    announce, check_command_limits, joint_values, spawn_hri_pipeline, Harness, HriTaps,
+    HRI_SERVICES,
+};
 use nalgebra::{Isometry3, Vector3};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_robot_shakes_the_offered_hand_within_its_limits_and_clearances() -> anyhow::Result<()>
 {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let model = RobotModel::tiago_dual();
     let body = RobotBody::tiago(&model)?;
     let mission = Mission::named("handshake").map_err(anyhow::Error::msg)?;
@@ -33,28 +34,19 @@ async fn the_robot_shakes_the_offered_hand_within_its_limits_and_clearances() ->
     let clearances = SeparationConfig::default();
 
     let mut h = Harness::new("sys-handshake", 5)?;
-    h.spawn("mock-robot", "echoctl", &["mock-robot"])?;
-    h.spawn("perception-bridge", "perception-bridge", &[])?;
-    let hri_model = root.join("models/hri");
-    h.spawn(
-        "forecaster",
-        "forecaster",
-        &["--model", hri_model.to_str().unwrap_or_default()],
-    )?;
-    h.spawn("safety", "safety", &["--require", "mock-robot"])?;
+    spawn_hri_pipeline(&mut h)?;
     let bus = h.bus("system-test").await?;
     let robot = bus.robot().clone();
-    let prompt = bus.publisher(&topics::prompt(&robot)).await?;
-    let states = bus.subscribe(&topics::robot_state(&robot)).await?;
-    let humans = bus.subscribe(&topics::humans(&robot)).await?;
-    let commands = bus.subscribe(&topics::command(&robot)).await?;
-    let safety = bus.subscribe(&topics::safety_status(&robot)).await?;
-    h.wait_alive(
-        &bus,
-        &["mock-robot", "perception-bridge", "forecaster", "safety"],
-        Duration::from_secs(60),
-    )
-    .await?;
+    let HriTaps {
+        prompt,
+        states,
+        humans,
+        commands,
+        safety,
+        forecasts: _,
+    } = HriTaps::open(&bus).await?;
+    h.wait_alive(&bus, &HRI_SERVICES, Duration::from_secs(60))
+        .await?;
     // The partner starts once everything listens, and plays the scenario once.
     let t0 = now_ns() + 1_000_000_000;
     h.spawn(
@@ -75,26 +67,11 @@ async fn the_robot_shakes_the_offered_hand_within_its_limits_and_clearances() ->
     let (mut points, mut violations, mut accepted, mut estopped) = (0usize, vec![], 0u64, false);
     let deadline = tokio::time::Instant::now() + Duration::from_secs_f64(1.5 + mission.duration());
     while tokio::time::Instant::now() < deadline {
-        prompt
-            .put(InteractionIntent {
-                header: Header::new(robot.as_str(), "", ""),
-                text: seg.text.clone(),
-                interaction: seg.interaction,
-                mode: echo_msgs::ControlMode::Forecast,
-            })
-            .await?;
+        announce(&prompt, robot.as_str(), &seg).await?;
         for _ in 0..10 {
             tokio::time::sleep(Duration::from_millis(25)).await;
             for s in states.drain() {
-                let pairs: Vec<(&str, f64)> = s
-                    .msg
-                    .name
-                    .iter()
-                    .zip(&s.msg.position)
-                    .filter(|(n, _)| model.joint_index(n).is_some())
-                    .map(|(n, p)| (n.as_str(), *p))
-                    .collect();
-                q = Some(model.values_from(pairs)?);
+                q = Some(joint_values(&model, &s.msg)?);
             }
             for s in humans.drain() {
                 let (Some(q), Some(pid)) = (&q, s.msg.partner_id) else {

@@ -9,49 +9,40 @@
 
 use std::time::Duration;
 
-use echo_bus::topics;
 use echo_eval::behaviour::wave;
-use echo_msgs::{now_ns, Header, InteractionIntent, SafetyState};
+use echo_msgs::{now_ns, SafetyState};
 use echo_robot::{RobotModel, GRASPING_FRAMES, SHOULDER_LINKS};
 use echo_sim::mission::Mission;
-use echo_system_tests::{check_command_limits, Harness};
+use echo_system_tests::{
+    announce, check_command_limits, joint_values, spawn_hri_pipeline, Harness, HriTaps,
+    HRI_SERVICES,
+};
 
 /// Time (s, the mission's clock), gripper and shoulder positions (base frame).
 type HandSample = (f64, [f64; 3], [f64; 3]);
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_robot_waves_back_recognisably_within_its_limits() -> anyhow::Result<()> {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let model = RobotModel::tiago_dual();
     let mission = Mission::named("wave").map_err(anyhow::Error::msg)?;
     let seg = mission.segments[0].clone();
     assert_eq!(format!("{:?}", seg.interaction), "Wave");
 
     let mut h = Harness::new("sys-wave", 5)?;
-    h.spawn("mock-robot", "echoctl", &["mock-robot"])?;
-    h.spawn("perception-bridge", "perception-bridge", &[])?;
-    let hri_model = root.join("models/hri");
-    h.spawn(
-        "forecaster",
-        "forecaster",
-        &["--model", hri_model.to_str().unwrap_or_default()],
-    )?;
-    h.spawn("safety", "safety", &["--require", "mock-robot"])?;
+    spawn_hri_pipeline(&mut h)?;
     let bus = h.bus("system-test").await?;
     let robot = bus.robot().clone();
-    let prompt = bus.publisher(&topics::prompt(&robot)).await?;
-    let states = bus.subscribe(&topics::robot_state(&robot)).await?;
-    let humans = bus.subscribe(&topics::humans(&robot)).await?;
-    let commands = bus.subscribe(&topics::command(&robot)).await?;
-    let safety = bus.subscribe(&topics::safety_status(&robot)).await?;
-    let forecasts = bus.subscribe(&topics::forecast(&robot)).await?;
+    let HriTaps {
+        prompt,
+        states,
+        humans,
+        commands,
+        safety,
+        forecasts,
+    } = HriTaps::open(&bus).await?;
     let debug = std::env::var_os("ECHO_WAVE_DEBUG").is_some();
-    h.wait_alive(
-        &bus,
-        &["mock-robot", "perception-bridge", "forecaster", "safety"],
-        Duration::from_secs(60),
-    )
-    .await?;
+    h.wait_alive(&bus, &HRI_SERVICES, Duration::from_secs(60))
+        .await?;
     // As in the demo: the partner stands for a lead-in (the forecaster's history fills, the
     // interaction is announced), then plays the scenario once.
     let lead_in_s = 4.0;
@@ -75,26 +66,11 @@ async fn the_robot_waves_back_recognisably_within_its_limits() -> anyhow::Result
     let deadline =
         tokio::time::Instant::now() + Duration::from_secs_f64(lead_in_s + 1.5 + mission.duration());
     while tokio::time::Instant::now() < deadline {
-        prompt
-            .put(InteractionIntent {
-                header: Header::new(robot.as_str(), "", ""),
-                text: seg.text.clone(),
-                interaction: seg.interaction,
-                mode: echo_msgs::ControlMode::Forecast,
-            })
-            .await?;
+        announce(&prompt, robot.as_str(), &seg).await?;
         for _ in 0..10 {
             tokio::time::sleep(Duration::from_millis(25)).await;
             for s in states.drain() {
-                let pairs: Vec<(&str, f64)> = s
-                    .msg
-                    .name
-                    .iter()
-                    .zip(&s.msg.position)
-                    .filter(|(n, _)| model.joint_index(n).is_some())
-                    .map(|(n, p)| (n.as_str(), *p))
-                    .collect();
-                let q = model.values_from(pairs)?;
+                let q = joint_values(&model, &s.msg)?;
                 let t = (s.msg.header.stamp_ns as f64 - t0 as f64) / 1e9;
                 if !(seg.start_s..=seg.end_s).contains(&t) {
                     continue;

@@ -598,34 +598,22 @@ mod tests {
         t.epochs = 1;
         let scratch = tempfile::tempdir().unwrap();
         let base = scratch.path().join("base.safetensors");
-        let fresh = Run {
+        let run = |init: Option<PathBuf>| Run {
             dev: Device::Cpu,
             text: None,
             state: None,
             resume: false,
-            init: None,
+            init,
             data: None,
         };
-        let (trained, log) = train(&cfg, &t, &fresh, &mut Quiet).unwrap();
+        let (trained, log) = train(&cfg, &t, &run(None), &mut Quiet).unwrap();
         trained.save(&base).unwrap();
-        // Zero epochs from the saved weights: the best weights are the starting ones, and
-        // validation starts where the first run ended, not where a fresh model starts.
-        let init = Run {
-            init: Some(base.clone()),
-            ..fresh
-        };
-        t.epochs = 1;
+        // An epoch at learning rate 0 from the saved weights: validation starts where the
+        // first run ended, not where a fresh model starts.
+        let init = run(Some(base.clone()));
         t.lr = 0.0;
         let (tuned, tuned_log) = train(&cfg, &t, &init, &mut Quiet).unwrap();
-        let fresh = Run {
-            dev: Device::Cpu,
-            text: None,
-            state: None,
-            resume: false,
-            init: None,
-            data: None,
-        };
-        let (_, fresh_log) = train(&cfg, &t, &fresh, &mut Quiet).unwrap();
+        let (_, fresh_log) = train(&cfg, &t, &run(None), &mut Quiet).unwrap();
         let d = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f64>();
         assert!(
             d(&tuned_log[0].val_jpe, &log[0].val_jpe) < 1e-6,
