@@ -97,7 +97,7 @@ function label(group, position, text, size, color) {
 
 // Entities by id: a group each, rebuilt when the entity changes.
 const groups = new Map();
-const state = { updates: 0, seq: 0, polls: 0, errors: 0, kinds: {}, primitives: {}, trackedId: null, partnerHead: null, firstPartnerHead: null, lastError: '' };
+const state = { updates: 0, seq: 0, polls: 0, errors: 0, kinds: {}, primitives: {}, peak: {}, trackedId: null, partnerHead: null, firstPartnerHead: null, lastError: '' };
 window.echoViewer = state;
 
 function disposeGroup(g) {
@@ -166,6 +166,7 @@ function apply(scene) {
   }));
   state.kinds = kinds;
   state.primitives = prims;
+  for (const k of Object.keys(prims)) state.peak[k] = Math.max(state.peak[k] || 0, prims[k]);
   state.captions = scene.captions.map((c) => c.text);
   state.updates += 1;
 }
@@ -181,7 +182,8 @@ function showStatus() {
   statusEl.textContent =
     `echo-viewer updates=${state.updates} seq=${state.seq} polls=${state.polls} errors=${state.errors}` +
     ` tracked=${state.trackedId || 'none'} person_moved_m=${moved().toFixed(3)} webgl=${renderer.getContext() ? 1 : 0}\n` +
-    `entities (count/primitives): ${kinds || 'none yet'}`;
+    `entities (count/primitives): ${kinds || 'none yet'}\n` +
+    `most primitives seen: ${Object.keys(state.peak).sort().map((k) => `${k} ${state.peak[k]}`).join(', ') || 'none yet'}`;
   statusEl.title = state.lastError ? `last error: ${state.lastError}` : '';
 }
 
