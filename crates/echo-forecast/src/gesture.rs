@@ -26,6 +26,7 @@
 //! like any other.
 
 use echo_msgs::{Interaction, RobotPlan};
+use echo_robot::JointValues;
 use nalgebra::Vector3;
 
 use crate::contact::ContactReach;
@@ -58,17 +59,49 @@ pub struct WaveRefinement {
 }
 
 /// Adds a wave to the raised arm of a plan.
-pub struct WaveBack<'a> {
-    reach: &'a ContactReach,
+pub struct WaveBack {
+    /// Per arm (left, right): the wave posture — the arm's joints with the hand at the wave
+    /// centre, solved once from the home pose — and how far the hand stays from the centre, m.
+    postures: [Option<(JointValues, f64)>; 2],
 }
 
-impl<'a> WaveBack<'a> {
-    /// Using the arm model and inverse kinematics of `reach`.
-    pub fn new(reach: &'a ContactReach) -> WaveBack<'a> {
-        WaveBack { reach }
+/// The wave centre of `arm`'s hand at joints `q`: [`WAVE_FORWARD_M`] forward, [`WAVE_OUT_M`]
+/// out (a raised hand in front of the face would swing into the head) and [`WAVE_UP_M`] up
+/// from its shoulder.
+fn centre(model: &echo_robot::RobotModel, q: &JointValues, arm: usize) -> Option<Vector3<f64>> {
+    let side = if arm == 0 { 1.0 } else { -1.0 };
+    let shoulder = model.fk(q, SHOULDER[arm]).ok()?.translation.vector;
+    Some(shoulder + Vector3::new(WAVE_FORWARD_M, side * WAVE_OUT_M, WAVE_UP_M))
+}
+
+impl WaveBack {
+    /// The wave postures of both arms, by the inverse kinematics of `reach`. Solved from the
+    /// home pose, not from the measured joints, whose solutions jump between the redundant
+    /// arm's branches while it moves and send it back and forth.
+    pub fn new(reach: &ContactReach) -> WaveBack {
+        let model = reach.model();
+        let home = model
+            .values_from(
+                echo_robot::home_pose()
+                    .iter()
+                    .map(|(n, v)| (n.as_str(), *v)),
+            )
+            .ok();
+        let postures = std::array::from_fn(|arm| {
+            let home = home.as_ref()?;
+            let c0 = centre(model, home, arm)?;
+            let mut q = home.clone();
+            for _ in 0..60 {
+                q = reach.solve(&q, arm, &c0);
+            }
+            let err = (reach.grasp(&q, arm) - c0).norm();
+            Some((q, err))
+        });
+        WaveBack { postures }
     }
 
-    /// Refine `plan` (stamped `stamp_s`, seconds on the sender's clock) for `interaction`;
+    /// Refine `plan` (stamped `stamp_s`, seconds on the sender's clock) for `interaction`,
+    /// with the arm model and inverse kinematics of `reach` (the one the postures came from);
     /// `partner_waving`: the partner has a hand above the shoulder now ([`hand_raised`]) — the
     /// arm the plan holds highest then waves even if the plan does not raise it. `keep_arm`
     /// (left = true): the arm of a wave already under way, which goes on waving (plans that
@@ -76,6 +109,7 @@ impl<'a> WaveBack<'a> {
     /// `None`: not a wave, no arm raised in the plan nor the partner's, or unknown joints.
     pub fn refine(
         &self,
+        reach: &ContactReach,
         plan: &mut RobotPlan,
         stamp_s: f64,
         interaction: Interaction,
@@ -85,7 +119,7 @@ impl<'a> WaveBack<'a> {
         if interaction != Interaction::Wave || plan.points.len() < 2 {
             return None;
         }
-        let model = self.reach.model();
+        let model = reach.model();
         let index: Vec<usize> = plan
             .joint_names
             .iter()
@@ -98,84 +132,30 @@ impl<'a> WaveBack<'a> {
             }
             q
         };
-        let height = |q: &echo_robot::JointValues, arm: usize| -> Option<f64> {
-            let s = model.fk(q, SHOULDER[arm]).ok()?.translation.vector;
-            Some(self.reach.grasp(q, arm).z - s.z)
-        };
-        // The arm the plan raises highest.
-        let mut best = (f64::NEG_INFINITY, 0usize);
+        // Each hand's highest point above its shoulder over the plan.
+        let mut raised = [f64::NEG_INFINITY; 2];
         for p in &plan.points {
             let q = values(&p.positions);
-            for arm in 0..2 {
-                let h = height(&q, arm)?;
-                if h > best.0 {
-                    best = (h, arm);
-                }
+            for (arm, r) in raised.iter_mut().enumerate() {
+                let s = model.fk(&q, SHOULDER[arm]).ok()?.translation.vector;
+                *r = r.max(reach.grasp(&q, arm).z - s.z);
             }
         }
-        let (mut raised, mut arm) = best;
-        let picked = arm;
-        if raised.is_nan() || (raised <= 0.0 && !partner_waving) {
+        let highest = usize::from(raised[1] > raised[0]);
+        if raised[highest].is_nan() || (raised[highest] <= 0.0 && !partner_waving) {
             return None;
         }
-        if let Some(left) = keep_arm {
-            arm = if left { 0 } else { 1 };
-            raised = plan
-                .points
-                .iter()
-                .filter_map(|p| height(&values(&p.positions), arm))
-                .fold(f64::NEG_INFINITY, f64::max);
-        }
-        // The wave posture: one joint configuration, solved from the home pose (not from the
-        // measured joints, whose solutions jump between the redundant arm's branches while it
-        // moves, sending it back and forth). Every plan point starts from it, so the joints
-        // move by the least the hand's sideways swing needs.
-        let home = model
-            .values_from(
-                echo_robot::home_pose()
-                    .iter()
-                    .map(|(n, v)| (n.as_str(), *v)),
-            )
-            .ok()?;
-        let posture_of = |arm: usize| -> Option<(echo_robot::JointValues, f64)> {
-            // Out to the side: a raised hand in front of the face would swing into the head,
-            // and the arm's joints near their limits would be braked by the safety filter.
-            let side = if arm == 0 { 1.0 } else { -1.0 };
-            let shoulder = model.fk(&home, SHOULDER[arm]).ok()?.translation.vector;
-            let c0 = shoulder + Vector3::new(WAVE_FORWARD_M, side * WAVE_OUT_M, WAVE_UP_M);
-            let mut q = home.clone();
-            for _ in 0..60 {
-                q = self.reach.solve(&q, arm, &c0);
-            }
-            let err = (self.reach.grasp(&q, arm) - c0).norm();
-            Some((q, err))
+        // The arm under way, else the one the plan holds highest — unless it cannot reach
+        // its wave posture (then the other one).
+        let err = |arm: usize| self.postures[arm].as_ref().map_or(f64::INFINITY, |p| p.1);
+        let arm = match keep_arm {
+            Some(left) => usize::from(!left),
+            None if err(highest) > 0.03 && err(1 - highest) < err(highest) => 1 - highest,
+            None => highest,
         };
-        // The arm the plan or the partner picked, unless it cannot reach the wave posture
-        // within its limits (then the other one).
-        let (mut posture, err) = posture_of(arm)?;
-        if err > 0.03 && keep_arm.is_none() {
-            if let Some((q, _)) = posture_of(1 - arm).filter(|(_, e)| *e < err) {
-                posture = q;
-                arm = 1 - arm;
-            }
-        }
-        let raised = if arm == picked {
-            raised
-        } else {
-            plan.points
-                .iter()
-                .filter_map(|p| height(&values(&p.positions), arm))
-                .fold(f64::NEG_INFINITY, f64::max)
-        };
-        // Out to the side: a raised hand in front of the face would swing into the head, and
-        // the arm's joints near their limits would be braked by the safety filter.
-        let side = if arm == 0 { 1.0 } else { -1.0 };
-        let centre = |q: &echo_robot::JointValues| -> Option<Vector3<f64>> {
-            let shoulder = model.fk(q, SHOULDER[arm]).ok()?.translation.vector;
-            Some(shoulder + Vector3::new(WAVE_FORWARD_M, side * WAVE_OUT_M, WAVE_UP_M))
-        };
+        let posture = &self.postures[arm].as_ref()?.0;
         let measured = values(&plan.points[0].positions);
-        let arm_joints = &self.reach.arms[arm];
+        let arm_joints = &reach.arms[arm];
         let gap = arm_joints
             .iter()
             .map(|&j| (posture.0[j] - measured.0[j]).abs())
@@ -188,22 +168,23 @@ impl<'a> WaveBack<'a> {
         } else {
             gap / TRANSITION_RAD_S
         };
-        for k in 0..plan.points.len() {
-            let learned = values(&plan.points[k].positions);
-            let t_plan = plan.points[k].t;
-            let t = stamp_s + t_plan;
+        for point in &mut plan.points {
+            let learned = values(&point.positions);
+            let t = stamp_s + point.t;
             let y = WAVE_AMPLITUDE_M * (2.0 * std::f64::consts::PI * WAVE_HZ * t).sin();
-            let target = centre(&learned)? + Vector3::new(0.0, y, 0.0);
+            let target = centre(model, &learned, arm)? + Vector3::new(0.0, y, 0.0);
+            // Every point starts from the posture, so the joints move by the least the hand's
+            // sideways swing needs.
             let mut seed = learned.clone();
             for &j in arm_joints {
                 seed.0[j] = posture.0[j];
             }
-            let solved = self.reach.solve(&seed, arm, &target);
+            let solved = reach.solve(&seed, arm, &target);
             // A constant pace (no ease-in): plans follow one another every frame and the
             // safety service samples each near its start, so a ramp that starts flat would
             // never get the arm moving.
             let w = if transition_s > 0.0 {
-                (t_plan / transition_s).clamp(0.0, 1.0)
+                (point.t / transition_s).clamp(0.0, 1.0)
             } else {
                 1.0
             };
@@ -211,13 +192,13 @@ impl<'a> WaveBack<'a> {
             for &j in arm_joints {
                 q.0[j] = measured.0[j] + w * (solved.0[j] - measured.0[j]);
             }
-            for (slot, i) in plan.points[k].positions.iter_mut().zip(&index) {
+            for (slot, i) in point.positions.iter_mut().zip(&index) {
                 *slot = q.0[*i];
             }
         }
         Some(WaveRefinement {
             left_arm: arm == 0,
-            raised_m: raised,
+            raised_m: raised[arm],
         })
     }
 }
@@ -302,7 +283,7 @@ mod tests {
         let raised = plan(&reach, 0.3);
         let mut p = raised.clone();
         let done = WaveBack::new(&reach)
-            .refine(&mut p, 100.0, Interaction::Wave, false, None)
+            .refine(&reach, &mut p, 100.0, Interaction::Wave, false, None)
             .expect("waves");
         assert!(!done.left_arm && done.raised_m > 0.15, "{done:?}");
         let ys: Vec<f64> = (1..p.points.len())
@@ -321,13 +302,13 @@ mod tests {
         // Other interactions leave the plan alone, and so does a plan with the arms down.
         let mut same = raised.clone();
         assert!(WaveBack::new(&reach)
-            .refine(&mut same, 100.0, Interaction::Handshake, true, None)
+            .refine(&reach, &mut same, 100.0, Interaction::Handshake, true, None)
             .is_none());
         assert_eq!(same, raised);
         let mut down = plan(&reach, -0.4);
         let before = down.clone();
         assert!(WaveBack::new(&reach)
-            .refine(&mut down, 100.0, Interaction::Wave, false, None)
+            .refine(&reach, &mut down, 100.0, Interaction::Wave, false, None)
             .is_none());
         assert_eq!(down, before);
         // The partner waving: the arm held highest is raised, at a pace the arm can follow,
@@ -342,6 +323,7 @@ mod tests {
             }
             let done = WaveBack::new(&reach)
                 .refine(
+                    &reach,
                     &mut p,
                     100.0 + 0.5 * round as f64,
                     Interaction::Wave,
@@ -392,7 +374,7 @@ mod tests {
         // The plan raises the right arm, but the left one is already waving: the left goes on.
         let mut p = plan(&reach, 0.3);
         let done = WaveBack::new(&reach)
-            .refine(&mut p, 100.0, Interaction::Wave, true, Some(true))
+            .refine(&reach, &mut p, 100.0, Interaction::Wave, true, Some(true))
             .expect("waves");
         assert!(done.left_arm, "{done:?}");
         let span = |arm: usize| {

@@ -149,6 +149,8 @@ pub struct ForecastServer {
     robot_model: RobotModel,
     /// Closes contact interactions' last centimetres (robot-agent models).
     contact: Option<ContactReach>,
+    /// Waving back (with `contact`'s arm model; postures solved once).
+    wave: Option<WaveBack>,
     /// The robot agent's joint names (feature order), once.
     robot_names: Vec<String>,
     slots: BTreeMap<String, Slot>,
@@ -196,8 +198,10 @@ impl ForecastServer {
             )?),
             false => None,
         };
+        let wave = contact.as_ref().map(WaveBack::new);
         Ok(ForecastServer {
             contact,
+            wave,
             cfg,
             backend,
             text,
@@ -536,13 +540,16 @@ impl ForecastServer {
                     points,
                 }
             });
-            if let (Some(p), Some(reach), Some(kind)) = (&mut plan, &self.contact, interaction) {
+            if let (Some(p), Some(reach), Some(wave), Some(kind)) =
+                (&mut plan, &self.contact, &self.wave, interaction)
+            {
                 // A wave back, once started (the partner's hand or the learned plan raised),
                 // goes on with the same arm while the interaction is a wave: the regressed plan
                 // dips now and then, and a wave that stops with it is no wave.
                 let under_way = self.slots.get(&robot).and_then(|s| s.wave_arm);
                 let partner_raised = human.first().is_some_and(|f| hand_raised(f));
-                let waved = WaveBack::new(reach).refine(
+                let waved = wave.refine(
+                    reach,
                     p,
                     stamp as f64 / 1e9,
                     kind,

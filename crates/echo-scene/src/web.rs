@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, RwLock};
 
+use axum::body::Bytes;
 use axum::extract::State;
 use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
@@ -54,10 +55,11 @@ pub fn locate_assets() -> Option<PathBuf> {
 }
 
 struct Shared {
-    /// The latest scene as JSON with its sequence number (0: none yet).
-    latest: RwLock<(u64, Arc<String>)>,
-    three: Option<Arc<String>>,
-    orbit: Option<Arc<String>>,
+    /// The sequence number of the latest scene (0: none yet) and its `/scene.json` body,
+    /// made once per scene; every poll answers with a cheap copy of it.
+    latest: RwLock<(u64, Bytes)>,
+    three: Option<Bytes>,
+    orbit: Option<Bytes>,
     /// `/scene.json` requests answered.
     polls: AtomicU64,
 }
@@ -75,15 +77,15 @@ impl WebViewer {
     /// holding [`THREE_JS`] and [`ORBIT_JS`]). Without them the page still loads and says how to
     /// install them.
     pub async fn start(host: &str, port: u16, assets: Option<&Path>) -> Result<Self, SceneError> {
-        let read = |name: &str| -> Result<Option<Arc<String>>, SceneError> {
+        let read = |name: &str| -> Result<Option<Bytes>, SceneError> {
             let Some(dir) = assets else { return Ok(None) };
             let path = dir.join(name);
-            std::fs::read_to_string(&path)
-                .map(|s| Some(Arc::new(s)))
+            std::fs::read(&path)
+                .map(|s| Some(Bytes::from(s)))
                 .map_err(|source| SceneError::Io { path, source })
         };
         let shared = Arc::new(Shared {
-            latest: RwLock::new((0, Arc::new(String::new()))),
+            latest: RwLock::new((0, Bytes::new())),
             three: read(THREE_JS)?,
             orbit: read(ORBIT_JS)?,
             polls: AtomicU64::new(0),
@@ -149,7 +151,11 @@ impl WebViewer {
             .latest
             .write()
             .unwrap_or_else(|p| p.into_inner());
-        *latest = (latest.0 + 1, Arc::new(json));
+        let seq = latest.0 + 1;
+        *latest = (
+            seq,
+            Bytes::from(format!("{{\"seq\":{seq},\"scene\":{json}}}")),
+        );
     }
 
     /// Scenes published so far.
@@ -175,29 +181,26 @@ impl WebViewer {
     }
 }
 
-fn text(content_type: &'static str, body: Arc<String>) -> Response {
+fn text(content_type: &'static str, body: impl IntoResponse) -> Response {
     (
         [
             (header::CONTENT_TYPE, content_type),
             (header::CACHE_CONTROL, "no-cache"),
         ],
-        body.as_str().to_owned(),
+        body,
     )
         .into_response()
 }
 
 async fn index() -> Response {
-    text("text/html; charset=utf-8", Arc::new(INDEX_HTML.to_owned()))
+    text("text/html; charset=utf-8", INDEX_HTML)
 }
 
 async fn viewer_js() -> Response {
-    text(
-        "text/javascript; charset=utf-8",
-        Arc::new(VIEWER_JS.to_owned()),
-    )
+    text("text/javascript; charset=utf-8", VIEWER_JS)
 }
 
-fn vendor(file: &Option<Arc<String>>, name: &str) -> Response {
+fn vendor(file: &Option<Bytes>, name: &str) -> Response {
     match file {
         Some(s) => text("text/javascript; charset=utf-8", s.clone()),
         None => (
@@ -218,19 +221,9 @@ async fn orbit_js(State(s): State<Arc<Shared>>) -> Response {
 
 async fn scene_json(State(s): State<Arc<Shared>>) -> Response {
     s.polls.fetch_add(1, Ordering::Relaxed);
-    let (seq, json) = s
-        .latest
-        .read()
-        .map(|l| (l.0, l.1.clone()))
-        .unwrap_or_else(|p| {
-            let l = p.into_inner();
-            (l.0, l.1.clone())
-        });
+    let (seq, body) = s.latest.read().unwrap_or_else(|p| p.into_inner()).clone();
     if seq == 0 {
         return StatusCode::NO_CONTENT.into_response();
     }
-    text(
-        "application/json",
-        Arc::new(format!("{{\"seq\":{seq},\"scene\":{json}}}")),
-    )
+    text("application/json", body)
 }
