@@ -296,21 +296,6 @@ pub async fn announce(
     Ok(())
 }
 
-/// The joint values of a joint-state message (joints the model does not know are skipped).
-pub fn joint_values(
-    model: &echo_robot::RobotModel,
-    msg: &echo_msgs::JointState,
-) -> Result<echo_robot::JointValues> {
-    let pairs: Vec<(&str, f64)> = msg
-        .name
-        .iter()
-        .zip(&msg.position)
-        .filter(|(n, _)| model.joint_index(n).is_some())
-        .map(|(n, p)| (n.as_str(), *p))
-        .collect();
-    Ok(model.values_from(pairs)?)
-}
-
 /// A test's taps on the human–robot pipeline: the prompt it announces on and the inboxes it
 /// reads (joint states, people, commands, safety status, forecasts).
 pub struct HriTaps {

@@ -18,8 +18,7 @@ use echo_robot::RobotModel;
 use echo_safety::config::SeparationConfig;
 use echo_sim::mission::Mission;
 use echo_system_tests::{
-    announce, check_command_limits, joint_values, spawn_hri_pipeline, Harness, HriTaps,
-    HRI_SERVICES,
+    announce, check_command_limits, spawn_hri_pipeline, Harness, HriTaps, HRI_SERVICES,
 };
 use nalgebra::{Isometry3, Vector3};
 
@@ -71,7 +70,15 @@ async fn the_robot_shakes_the_offered_hand_within_its_limits_and_clearances() ->
         for _ in 0..10 {
             tokio::time::sleep(Duration::from_millis(25)).await;
             for s in states.drain() {
-                q = Some(joint_values(&model, &s.msg)?);
+                q = Some(
+                    model.known_values(
+                        s.msg
+                            .name
+                            .iter()
+                            .map(String::as_str)
+                            .zip(s.msg.position.iter().copied()),
+                    ),
+                );
             }
             for s in humans.drain() {
                 let (Some(q), Some(pid)) = (&q, s.msg.partner_id) else {

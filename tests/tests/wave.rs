@@ -14,8 +14,7 @@ use echo_msgs::{now_ns, SafetyState};
 use echo_robot::{RobotModel, GRASPING_FRAMES, SHOULDER_LINKS};
 use echo_sim::mission::Mission;
 use echo_system_tests::{
-    announce, check_command_limits, joint_values, spawn_hri_pipeline, Harness, HriTaps,
-    HRI_SERVICES,
+    announce, check_command_limits, spawn_hri_pipeline, Harness, HriTaps, HRI_SERVICES,
 };
 
 /// Time (s, the mission's clock), gripper and shoulder positions (base frame).
@@ -70,7 +69,13 @@ async fn the_robot_waves_back_recognisably_within_its_limits() -> anyhow::Result
         for _ in 0..10 {
             tokio::time::sleep(Duration::from_millis(25)).await;
             for s in states.drain() {
-                let q = joint_values(&model, &s.msg)?;
+                let q = model.known_values(
+                    s.msg
+                        .name
+                        .iter()
+                        .map(String::as_str)
+                        .zip(s.msg.position.iter().copied()),
+                );
                 let t = (s.msg.header.stamp_ns as f64 - t0 as f64) / 1e9;
                 if !(seg.start_s..=seg.end_s).contains(&t) {
                     continue;

@@ -301,6 +301,19 @@ impl RobotModel {
         Ok(q)
     }
 
+    /// Joint values from (name, value) pairs of a measured state that may name joints this
+    /// model does not have (grippers' fingers, wheels, another robot's extras): those are
+    /// skipped; unnamed joints stay 0.
+    pub fn known_values<'a>(&self, pairs: impl IntoIterator<Item = (&'a str, f64)>) -> JointValues {
+        let mut q = self.zero();
+        for (n, v) in pairs {
+            if let Some(i) = self.joint_index(n) {
+                q.0[i] = v;
+            }
+        }
+        q
+    }
+
     fn joint_transform(&self, j: &JointSpec, q: &JointValues) -> Isometry3<f64> {
         let v = self
             .actuated_index
@@ -395,5 +408,14 @@ mod tests {
         let m = RobotModel::tiago_dual();
         assert!(m.fk(&m.zero(), "nope").is_err());
         assert!(m.values_from([("nope", 1.0)]).is_err());
+    }
+
+    #[test]
+    fn known_values_skip_joints_the_model_lacks() {
+        let m = RobotModel::tiago_dual();
+        let q = m.known_values([("nope", 1.0), ("torso_lift_joint", 0.2)]);
+        let torso = m.joint_index("torso_lift_joint").unwrap();
+        assert_eq!(q.0[torso], 0.2);
+        assert_eq!(q.0.iter().filter(|v| **v != 0.0).count(), 1);
     }
 }

@@ -193,13 +193,12 @@ pub async fn serve(args: Args, mut stop: Shutdown) -> Result<()> {
         }
         // Without a joint state the camera cannot be placed: the robot is not up yet.
         let Some(js) = &latest else { continue };
-        let q = model.values_from(
+        let q = model.known_values(
             js.name
                 .iter()
-                .zip(&js.position)
-                .filter(|(n, _)| model.joint_index(n).is_some())
-                .map(|(n, v)| (n.as_str(), *v)),
-        )?;
+                .map(String::as_str)
+                .zip(js.position.iter().copied()),
+        );
         let camera = model.fk(&q, frames::HEAD_CAMERA_OPTICAL)?;
         let stamp = now_ns();
         let t = mock.script_time(stamp.saturating_sub(t0) as f64 / 1e9);
