@@ -26,17 +26,6 @@ fn chromium() -> Option<PathBuf> {
     })
 }
 
-fn three_js(root: &Path) -> Option<PathBuf> {
-    let dirs = [
-        std::env::var_os("ECHO_WEB_ASSETS").map(PathBuf::from),
-        std::env::var_os("ECHO_CACHE").map(|c| PathBuf::from(c).join("web")),
-        Some(root.join(".cache/web")),
-    ];
-    dirs.into_iter()
-        .flatten()
-        .find(|d| d.join("three.module.js").is_file() && d.join("OrbitControls.js").is_file())
-}
-
 /// Headless chromium with the flags a closed network and a container need.
 fn browser(exe: &Path, profile: &Path) -> Command {
     let mut c = Command::new(exe);
@@ -93,12 +82,11 @@ fn peak(status: &str, kind: &str) -> u32 {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_browser_viewer_draws_the_robot_and_the_person_and_follows_the_bus() -> Result<()> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let Some(exe) = chromium() else {
         eprintln!("SKIPPED: no chromium (scripts/setup installs Debian's chromium where apt can; or set ECHO_CHROMIUM)");
         return Ok(());
     };
-    let Some(assets) = three_js(&root) else {
+    let Some(assets) = echo_scene::web::locate_assets() else {
         eprintln!("SKIPPED: three.js not in .cache/web (run scripts/setup)");
         return Ok(());
     };
