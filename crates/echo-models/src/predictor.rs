@@ -107,6 +107,17 @@ pub struct CheckpointMeta {
     pub hri_training: Option<serde_json::Value>,
 }
 
+impl CheckpointMeta {
+    /// Read `<stem>.json`; the file is named in any error.
+    pub fn load(stem: &Path) -> anyhow::Result<CheckpointMeta> {
+        let jp = stem.with_extension("json");
+        serde_json::from_slice(
+            &std::fs::read(&jp).map_err(|e| anyhow::anyhow!("{}: {e}", jp.display()))?,
+        )
+        .map_err(|e| anyhow::anyhow!("{}: {e}", jp.display()))
+    }
+}
+
 /// A loaded checkpoint.
 pub struct Checkpoint {
     /// The model.
@@ -135,11 +146,7 @@ impl Checkpoint {
     /// Load `<stem>.safetensors` and `<stem>.json`, and the sentence encoder the model was
     /// trained with when it reads text; a missing tensor or encoder is named.
     pub fn load(stem: &Path, dev: &Device) -> anyhow::Result<Checkpoint> {
-        let jp = stem.with_extension("json");
-        let meta: CheckpointMeta = serde_json::from_slice(
-            &std::fs::read(&jp).map_err(|e| anyhow::anyhow!("{}: {e}", jp.display()))?,
-        )
-        .map_err(|e| anyhow::anyhow!("{}: {e}", jp.display()))?;
+        let meta = CheckpointMeta::load(stem)?;
         let wp = stem.with_extension("safetensors");
         let bytes = std::fs::read(&wp).map_err(|e| anyhow::anyhow!("{}: {e}", wp.display()))?;
         let vb = VarBuilder::from_buffered_safetensors(bytes, DType::F32, dev)?;
@@ -150,7 +157,7 @@ impl Checkpoint {
             anyhow::ensure!(
                 enc.id() == meta.text_encoder && enc.dim() == meta.model.text_dim,
                 "{}: trained with {} ({}-d), found {} ({}-d)",
-                jp.display(),
+                stem.with_extension("json").display(),
                 meta.text_encoder,
                 meta.model.text_dim,
                 enc.id(),

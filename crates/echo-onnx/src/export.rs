@@ -493,11 +493,7 @@ pub fn build_checkpoint(stem: &Path, cfg: &ForecasterConfig) -> Result<ModelProt
 
 /// Export `<stem>.safetensors` + `<stem>.json` to `out` (ONNX protobuf).
 pub fn export_checkpoint(stem: &Path, out: &Path) -> Result<ModelProto> {
-    let jp = stem.with_extension("json");
-    let meta: CheckpointMeta = serde_json::from_slice(
-        &std::fs::read(&jp).with_context(|| format!("reading {}", jp.display()))?,
-    )
-    .with_context(|| format!("parsing {}", jp.display()))?;
+    let meta = CheckpointMeta::load(stem)?;
     let model = build_checkpoint(stem, &meta.model)?;
     std::fs::write(out, model.encode_to_vec())
         .with_context(|| format!("writing {}", out.display()))?;

@@ -140,11 +140,7 @@ fn untrained(like: &std::path::Path, d: usize, self_layers: usize) -> Result<std
         d >= 16 && d.is_multiple_of(16),
         "--d-model must be a multiple of 16"
     );
-    let json = like.with_extension("json");
-    let mut meta: CheckpointMeta = serde_json::from_slice(
-        &std::fs::read(&json).map_err(|e| anyhow::anyhow!("{}: {e}", json.display()))?,
-    )
-    .map_err(|e| anyhow::anyhow!("{}: {e}", json.display()))?;
+    let mut meta = CheckpointMeta::load(like)?;
     meta.model.d_model = d;
     meta.model.heads = d / 16;
     meta.model.self_layers = self_layers;

@@ -5,7 +5,7 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use echo_eval::render::{chart, Curve, Panel};
 use echo_models::model::ForecasterConfig;
 use echo_models::train::{train, EpochLog, Progress, Run, TrainConfig};
@@ -485,12 +485,7 @@ pub fn run(args: Args) -> Result<()> {
         ..Default::default()
     };
     if let Some(init) = &args.init {
-        let json = init.with_extension("json");
-        let meta: CheckpointMeta = serde_json::from_slice(
-            &std::fs::read(&json).with_context(|| format!("reading {}", json.display()))?,
-        )
-        .with_context(|| format!("parsing {}", json.display()))?;
-        model = meta.model;
+        model = CheckpointMeta::load(init)?.model;
     }
     let mut t = TrainConfig {
         lr: args.lr,
