@@ -1,17 +1,17 @@
 //! System-test harness: starts Echo services as real OS processes, each with its own Zenoh
 //! peer session on free loopback ports (explicit endpoints, no multicast), waits for their
-//! liveliness tokens, and always stops them (SIGTERM, then SIGKILL) when dropped.
+//! liveliness tokens, and always stops them (SIGTERM, then SIGKILL: `echo_launch`) when dropped.
 
 pub mod attack;
 pub mod netns;
 
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use echo_bus::config::loopback_mesh;
 use echo_bus::{keys, Bus, BusArgs};
+use echo_launch::{Group, Logs, ProcessSpec};
 
 /// Directory holding the workspace's binaries for the profile the tests were built with.
 pub fn bin_dir() -> PathBuf {
@@ -36,12 +36,12 @@ pub fn binary(name: &str) -> Result<PathBuf> {
     Ok(p)
 }
 
-/// A set of service processes on one loopback mesh.
+/// A set of service processes on one loopback mesh, started and stopped by `echo_launch`.
 pub struct Harness {
     robot: String,
     mesh: Vec<BusArgs>,
     next: usize,
-    children: Vec<(String, Child)>,
+    children: Group,
     log_dir: PathBuf,
 }
 
@@ -58,7 +58,7 @@ impl Harness {
             robot: robot.to_string(),
             mesh: loopback_mesh(robot, services + 1),
             next: 1,
-            children: vec![],
+            children: Group::new(Duration::from_secs(3)),
             log_dir,
         })
     }
@@ -90,9 +90,11 @@ impl Harness {
 
     /// Start `program` with exactly `args` (no mesh flags), e.g. a router with its own endpoints.
     pub fn spawn_raw(&mut self, label: &str, program: &str, args: &[&str]) -> Result<()> {
-        let mut cmd = Command::new(binary(program)?);
-        cmd.args(args);
-        self.spawn_command(label, cmd)
+        self.start(ProcessSpec::new(
+            label,
+            binary(program)?,
+            echo_launch::args(args),
+        ))
     }
 
     /// Start `program` with exactly `args` inside the network namespace `netns`.
@@ -103,22 +105,15 @@ impl Harness {
         program: &str,
         args: &[&str],
     ) -> Result<()> {
-        let mut cmd = Command::new("ip");
-        cmd.args(["netns", "exec", netns])
-            .arg(binary(program)?)
-            .args(args);
-        self.spawn_command(label, cmd)
+        let spec = ProcessSpec::new(label, binary(program)?, echo_launch::args(args))
+            .wrapped(&["ip", "netns", "exec", netns]);
+        self.start(spec)
     }
 
-    fn spawn_command(&mut self, label: &str, mut cmd: Command) -> Result<()> {
-        let log = std::fs::File::create(self.log_dir.join(format!("{label}.log")))?;
-        let child = cmd
-            .env("RUST_LOG", "info,zenoh=warn")
-            .stdout(Stdio::from(log.try_clone()?))
-            .stderr(Stdio::from(log))
-            .spawn()
-            .with_context(|| format!("starting {label}"))?;
-        self.children.push((label.to_string(), child));
+    fn start(&mut self, mut spec: ProcessSpec) -> Result<()> {
+        spec.env = vec![("RUST_LOG".into(), "info,zenoh=warn".into())];
+        let logs = Logs::in_dir(&self.log_dir, &spec.label);
+        self.children.start(&spec, &logs)?;
         Ok(())
     }
 
@@ -144,35 +139,24 @@ impl Harness {
 
     /// Process id of a started process.
     pub fn pid(&self, label: &str) -> Option<u32> {
-        self.children
-            .iter()
-            .find(|(l, _)| l == label)
-            .map(|(_, c)| c.id())
+        self.children.get(label).map(|p| p.id())
     }
 
     /// Kill a process at once (SIGKILL: a crash, no clean shutdown).
     pub fn kill(&mut self, label: &str) {
-        if let Some(pos) = self.children.iter().position(|(l, _)| l == label) {
-            let (_, mut child) = self.children.remove(pos);
-            let _ = child.kill();
-            let _ = child.wait();
+        if let Some(mut p) = self.children.take(label) {
+            p.kill();
         }
     }
 
     /// Exit status of a process that has ended (None while it runs).
     pub fn exit_status(&mut self, label: &str) -> Option<std::process::ExitStatus> {
-        self.children
-            .iter_mut()
-            .find(|(l, _)| l == label)
-            .and_then(|(_, c)| c.try_wait().ok().flatten())
+        self.children.get_mut(label).and_then(|p| p.try_status())
     }
 
     /// Whether a started process is still running.
     pub fn is_running(&mut self, label: &str) -> bool {
-        self.children
-            .iter_mut()
-            .find(|(l, _)| l == label)
-            .is_some_and(|(_, c)| matches!(c.try_wait(), Ok(None)))
+        self.children.get_mut(label).is_some_and(|p| p.is_running())
     }
 
     /// Directory of the processes' logs (`<label>.log`).
@@ -190,38 +174,17 @@ impl Harness {
 
     /// Stop one process: SIGTERM, then SIGKILL after `grace`. Returns whether it exited cleanly.
     pub fn stop(&mut self, label: &str, grace: Duration) -> bool {
-        let Some(pos) = self.children.iter().position(|(l, _)| l == label) else {
-            return false;
-        };
-        let (_, mut child) = self.children.remove(pos);
-        terminate(&mut child, grace)
+        self.children
+            .take(label)
+            .is_some_and(|mut p| p.terminate(grace).is_clean())
     }
-}
-
-fn terminate(child: &mut Child, grace: Duration) -> bool {
-    let _ = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .stderr(Stdio::null())
-        .status();
-    let deadline = std::time::Instant::now() + grace;
-    while std::time::Instant::now() < deadline {
-        if let Ok(Some(status)) = child.try_wait() {
-            return status.success();
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let _ = child.kill();
-    let _ = child.wait();
-    false
 }
 
 impl Drop for Harness {
     /// Stops every process; removes the log directory unless the test is panicking (a failed
     /// assertion) or `ECHO_KEEP_TEST_LOGS=1` is set, so passing runs leave nothing behind.
     fn drop(&mut self) {
-        for (_, mut c) in self.children.drain(..).rev() {
-            terminate(&mut c, Duration::from_secs(3));
-        }
+        self.children.stop_all();
         let keep = std::thread::panicking()
             || std::env::var("ECHO_KEEP_TEST_LOGS").is_ok_and(|v| v == "1");
         if keep {

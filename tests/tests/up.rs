@@ -80,9 +80,15 @@ async fn up_starts_supervises_and_stops_a_profile() -> anyhow::Result<()> {
     let bridge = children_named(up, "perception-bridge");
     assert_eq!(bridge.len(), 1, "one bridge child: {bridge:?}");
     let watch = bus.watch_alive(&keys::alive_all(bus.robot())).await?;
-    std::process::Command::new("kill")
-        .args(["-KILL", &bridge[0].to_string()])
-        .status()?;
+    // The watch knows the bridge is alive before the kill (else its loss cannot be seen).
+    let missing = watch
+        .wait_for(ROBOT, &["perception-bridge"], Duration::from_secs(10))
+        .await;
+    assert!(missing.is_empty(), "the watch never saw the bridge");
+    assert!(echo_launch::send_signal(
+        bridge[0],
+        echo_launch::Sig::SIGKILL
+    ));
     let deadline = tokio::time::Instant::now() + Duration::from_secs(10);
     while watch.is_alive(ROBOT, "perception-bridge") && tokio::time::Instant::now() < deadline {
         tokio::time::sleep(Duration::from_millis(50)).await;

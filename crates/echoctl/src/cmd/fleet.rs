@@ -16,10 +16,11 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, Result};
 use echo_bus::config::loopback_mesh;
 use echo_bus::stats::{latency_summary, process_rss_mib};
 use echo_bus::{keys, topics, Bus, BusArgs, RobotId};
+use echo_launch::{Group, Logs, ProcessSpec};
 use echo_msgs::{now_ns, ControlMode, Header, InteractionIntent, JointState, KeypointFrame};
 use echo_sim::perception::MockPerceptionConfig;
 use echo_sim::scenario::bridge_inputs;
@@ -78,46 +79,16 @@ pub fn med_p99(v: &[f64]) -> String {
     }
 }
 
-struct Children(Vec<(String, std::process::Child)>);
-
-impl Drop for Children {
-    fn drop(&mut self) {
-        for (_, c) in &self.0 {
-            let _ = std::process::Command::new("kill")
-                .args(["-TERM", &c.id().to_string()])
-                .status();
-        }
-        let end = Instant::now() + Duration::from_secs(5);
-        for (_, c) in &mut self.0 {
-            while Instant::now() < end && matches!(c.try_wait(), Ok(None)) {
-                std::thread::sleep(Duration::from_millis(20));
-            }
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
-
 fn spawn(
-    children: &mut Children,
+    children: &mut Group,
     exe_dir: &Path,
     log_dir: &Path,
     label: &str,
     program: &str,
     args: Vec<String>,
 ) -> Result<()> {
-    let log = std::fs::File::create(log_dir.join(format!("{label}.log")))?;
-    let child = std::process::Command::new(exe_dir.join(program))
-        .args(args)
-        .env(
-            "RUST_LOG",
-            std::env::var("ECHO_SERVICE_LOG").unwrap_or_else(|_| "info,zenoh=warn".into()),
-        )
-        .stdout(log.try_clone()?)
-        .stderr(log)
-        .spawn()
-        .with_context(|| format!("starting {program} (build the workspace binaries first)"))?;
-    children.0.push((label.to_string(), child));
+    let spec = ProcessSpec::new(label, exe_dir.join(program), args);
+    children.start(&spec, &Logs::in_dir(log_dir, label))?;
     Ok(())
 }
 
@@ -154,7 +125,7 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
         a.robot = robot.to_string();
         a.to_cli()
     };
-    let mut children = Children(vec![]);
+    let mut children = Group::new(Duration::from_secs(5));
     let mut slot = 1;
     for r in &ids {
         spawn(
@@ -338,17 +309,22 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
             }
             _ = rss_tick.tick(), if opts.rss_every.is_some() => {
                 let t = started.elapsed().as_secs_f64();
-                for (label, c) in &children.0 {
-                    if let Some(m) = process_rss_mib(c.id()) {
-                        report.rss_mib.entry(label.clone()).or_default().push((t, m));
+                for (label, pid) in children.pids() {
+                    if let Some(m) = process_rss_mib(pid) {
+                        report.rss_mib.entry(label).or_default().push((t, m));
                     }
                 }
             }
         }
     }
     measuring.store(false, std::sync::atomic::Ordering::Relaxed);
-    for (label, c) in &mut children.0 {
-        if !matches!(c.try_wait(), Ok(None)) {
+    for label in children
+        .labels()
+        .iter()
+        .map(|l| l.to_string())
+        .collect::<Vec<_>>()
+    {
+        if children.get_mut(&label).is_some_and(|p| !p.is_running()) {
             anyhow::bail!(
                 "{label} exited during the run (log in {})",
                 opts.log_dir.display()

@@ -6,13 +6,11 @@
 //! Networking: as Zenoh clients of the router given with `--mode client --connect …` (robot +
 //! edge and fleet), or, in peer mode, a full mesh on loopback ports (single host).
 
-use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
-
 use anyhow::{anyhow, Context, Result};
 use echo_bus::config::free_ports;
 use echo_bus::{shutdown, BusArgs};
-use tokio::io::AsyncBufReadExt;
+use echo_launch::{supervise, Logs, ProcessSpec, RestartPolicy};
+use std::path::{Path, PathBuf};
 
 /// Options.
 #[derive(Debug, Clone, clap::Args)]
@@ -188,88 +186,26 @@ pub async fn run(args: Args) -> Result<()> {
             p.display()
         );
     }
-    let mut stop = shutdown::on_signals();
+    let stop = shutdown::on_signals();
     let mut tasks = vec![];
     for (spec, program, argv) in lines {
-        let stop = stop.clone();
-        tasks.push(tokio::spawn(supervise(spec.name, program, argv, stop)));
+        let mut stop = stop.clone();
+        let spec = ProcessSpec::new(&spec.name, program, argv);
+        tasks.push(tokio::spawn(async move {
+            let label = spec.label.clone();
+            let stopped = async move { stop.wait().await };
+            if let Err(e) = supervise(spec, Logs::Prefixed, RestartPolicy::default(), stopped).await
+            {
+                eprintln!("[{label}] {e}");
+            }
+        }));
     }
+    let mut stop = stop;
     stop.wait().await;
     for t in tasks {
         let _ = t.await;
     }
     Ok(())
-}
-
-/// Keep one service running: restart after it exits (1 s back-off, doubling to 30 s; reset
-/// after a minute of health); on `stop`, SIGTERM then SIGKILL after 5 s.
-async fn supervise(
-    name: String,
-    program: PathBuf,
-    argv: Vec<String>,
-    mut stop: shutdown::Shutdown,
-) {
-    let mut backoff = Duration::from_secs(1);
-    loop {
-        let started = Instant::now();
-        let child = tokio::process::Command::new(&program)
-            .args(&argv)
-            .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::piped())
-            .kill_on_drop(true)
-            .spawn();
-        let mut child = match child {
-            Ok(c) => c,
-            Err(e) => {
-                eprintln!("[{name}] cannot start {}: {e}", program.display());
-                return;
-            }
-        };
-        for pipe in [
-            child
-                .stdout
-                .take()
-                .map(|p| Box::new(p) as Box<dyn tokio::io::AsyncRead + Unpin + Send>),
-            child
-                .stderr
-                .take()
-                .map(|p| Box::new(p) as Box<dyn tokio::io::AsyncRead + Unpin + Send>),
-        ]
-        .into_iter()
-        .flatten()
-        {
-            let name = name.clone();
-            tokio::spawn(async move {
-                let mut lines = tokio::io::BufReader::new(pipe).lines();
-                while let Ok(Some(l)) = lines.next_line().await {
-                    eprintln!("[{name}] {l}");
-                }
-            });
-        }
-        tokio::select! {
-            status = child.wait() => {
-                let status = status.map(|s| s.to_string()).unwrap_or_else(|e| e.to_string());
-                if started.elapsed() > Duration::from_secs(60) {
-                    backoff = Duration::from_secs(1);
-                }
-                eprintln!("[{name}] exited ({status}); restarting in {:.0} s", backoff.as_secs_f64());
-                tokio::select! {
-                    _ = tokio::time::sleep(backoff) => {}
-                    _ = stop.wait() => return,
-                }
-                backoff = (backoff * 2).min(Duration::from_secs(30));
-            }
-            _ = stop.wait() => {
-                if let Some(pid) = child.id() {
-                    let _ = std::process::Command::new("kill").args(["-TERM", &pid.to_string()]).status();
-                }
-                if tokio::time::timeout(Duration::from_secs(5), child.wait()).await.is_err() {
-                    let _ = child.kill().await;
-                }
-                return;
-            }
-        }
-    }
 }
 
 #[cfg(test)]

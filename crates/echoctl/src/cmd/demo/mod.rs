@@ -25,6 +25,7 @@ use echo_bus::shutdown::{self, Shutdown, ShutdownTrigger};
 use echo_bus::stats::latency_summary;
 use echo_bus::topics;
 use echo_bus::{keys, Bus, BusArgs};
+use echo_launch::{Group, Logs, ProcessSpec, Stopped};
 use echo_msgs::{now_ns, ControlMode, Header, Interaction, InteractionIntent};
 
 use super::{mock_perception, mock_robot};
@@ -251,9 +252,15 @@ struct Observed {
     recording_errors: u64,
 }
 
-enum Running {
-    Process(tokio::process::Child),
-    Task(ShutdownTrigger, tokio::task::JoinHandle<Result<()>>),
+/// The services of a demo: processes (started and stopped by `echo_launch`), or tasks of this
+/// process with `--single-process`.
+struct Running {
+    processes: Group,
+    tasks: Vec<(
+        &'static str,
+        ShutdownTrigger,
+        tokio::task::JoinHandle<Result<()>>,
+    )>,
 }
 
 /// Run the demo.
@@ -324,16 +331,22 @@ pub async fn run(args: Args) -> Result<()> {
                 .join(", ")
         );
     }
-    let mut running: Vec<(&str, Running)> = vec![];
+    let mut running = Running {
+        processes: Group::new(Duration::from_secs(5)),
+        tasks: vec![],
+    };
     for (i, (name, launch)) in available.iter().enumerate() {
         let net = &mesh[i + 1];
         let flags = service_flags(name, &args, &setup);
-        let r = if args.single_process {
-            start_task(name, net, flags)?
+        if args.single_process {
+            let (trigger, handle) = start_task(name, net, flags)?;
+            running.tasks.push((name, trigger, handle));
         } else {
-            start_process(&exe_dir, name, *launch, net, flags, &log_dir)?
-        };
-        running.push((name, r));
+            let spec = process_spec(&exe_dir, name, *launch, net, flags);
+            running
+                .processes
+                .start(&spec, &Logs::in_dir(&log_dir, name))?;
+        }
     }
 
     // The browser viewer follows the bus from its own session, in this process.
@@ -527,33 +540,21 @@ fn pictures(recording: &Path, dir: &Path) {
     }
 }
 
-fn start_process(
+/// The command line of one service process.
+fn process_spec(
     exe_dir: &Path,
     name: &str,
     launch: Launch,
     net: &BusArgs,
     flags: Vec<String>,
-    log_dir: &Path,
-) -> Result<Running> {
+) -> ProcessSpec {
     let (program, mut argv) = match launch {
         Launch::Echoctl(verb) => (exe_dir.join("echoctl"), vec![verb.to_string()]),
         Launch::Binary => (exe_dir.join(name), vec![]),
     };
     argv.extend(net.to_cli());
     argv.extend(flags);
-    let log = std::fs::File::create(log_dir.join(format!("{name}.log")))?;
-    let child = tokio::process::Command::new(&program)
-        .args(&argv)
-        .env(
-            "RUST_LOG",
-            std::env::var("ECHO_SERVICE_LOG").unwrap_or_else(|_| "info,zenoh=warn".into()),
-        )
-        .stdout(log.try_clone()?)
-        .stderr(log)
-        .kill_on_drop(true)
-        .spawn()
-        .with_context(|| format!("starting {}", program.display()))?;
-    Ok(Running::Process(child))
+    ProcessSpec::new(name, program, argv)
 }
 
 /// What the demo plays, decided once before the services start.
@@ -626,7 +627,9 @@ fn service_flags(name: &str, args: &Args, setup: &Setup) -> Vec<String> {
     }
 }
 
-fn start_task(name: &str, net: &BusArgs, flags: Vec<String>) -> Result<Running> {
+type Task = (ShutdownTrigger, tokio::task::JoinHandle<Result<()>>);
+
+fn start_task(name: &str, net: &BusArgs, flags: Vec<String>) -> Result<Task> {
     use clap::Parser;
     #[derive(Parser)]
     struct Wrap<T: clap::Args> {
@@ -664,36 +667,34 @@ fn start_task(name: &str, net: &BusArgs, flags: Vec<String>) -> Result<Running> 
         }
         other => anyhow::bail!("{other} cannot run in-process"),
     };
-    Ok(Running::Task(trigger, handle))
+    Ok((trigger, handle))
 }
 
-/// SIGTERM (or shutdown) in reverse start order, then wait up to 5 s before killing.
-async fn stop_all(running: Vec<(&str, Running)>) {
-    for (name, r) in running.into_iter().rev() {
-        match r {
-            Running::Process(mut child) => {
-                if let Some(pid) = child.id() {
-                    let _ = std::process::Command::new("kill")
-                        .args(["-TERM", &pid.to_string()])
-                        .status();
-                }
-                match tokio::time::timeout(Duration::from_secs(5), child.wait()).await {
-                    Ok(Ok(status)) if !status.success() => eprintln!("{name} exited with {status}"),
-                    Ok(_) => {}
-                    Err(_) => {
-                        eprintln!("{name} did not stop within 5 s: killed");
-                        let _ = child.kill().await;
-                    }
-                }
+/// Stop the services: tasks by their shutdown triggers (reverse start order, 5 s each),
+/// processes by SIGTERM in reverse start order with one 5 s deadline before SIGKILL.
+async fn stop_all(running: Running) {
+    let Running {
+        mut processes,
+        tasks,
+    } = running;
+    for (name, trigger, handle) in tasks.into_iter().rev() {
+        trigger.trigger();
+        match tokio::time::timeout(Duration::from_secs(5), handle).await {
+            Ok(Ok(Err(e))) => eprintln!("{name} failed: {e:#}"),
+            Err(_) => eprintln!("{name} did not stop within 5 s"),
+            _ => {}
+        }
+    }
+    let stopped = tokio::task::spawn_blocking(move || processes.stop_all())
+        .await
+        .unwrap_or_default();
+    for (name, how) in stopped {
+        match how {
+            Stopped::Killed => eprintln!("{name} did not stop within 5 s: killed"),
+            Stopped::Exited(status) if !status.success() => {
+                eprintln!("{name} exited with {status}")
             }
-            Running::Task(trigger, handle) => {
-                trigger.trigger();
-                match tokio::time::timeout(Duration::from_secs(5), handle).await {
-                    Ok(Ok(Err(e))) => eprintln!("{name} failed: {e:#}"),
-                    Err(_) => eprintln!("{name} did not stop within 5 s"),
-                    _ => {}
-                }
-            }
+            Stopped::Exited(_) => {}
         }
     }
 }
