@@ -9,7 +9,7 @@
 //! fast) for the generator's role-naming descriptions, so they are applied to real captures
 //! only; proportions apply to every capture.
 
-use echo_motion::skeleton::NUM_JOINTS;
+use echo_motion::skeleton::MIRROR;
 use echo_motion::synth::Clip;
 
 /// Which augmented copies to make.
@@ -41,11 +41,6 @@ impl Augment {
         scales: &[],
     };
 }
-
-/// Left/right counterpart of each SMPL joint.
-const MIRROR: [usize; NUM_JOINTS] = [
-    0, 2, 1, 3, 5, 4, 6, 8, 7, 9, 11, 10, 12, 14, 13, 15, 17, 16, 19, 18, 21, 20,
-];
 
 /// A and B exchanged.
 pub fn swap(c: &Clip) -> Clip {
@@ -146,6 +141,7 @@ pub fn expand(c: &Clip, real: bool, a: &Augment) -> Vec<Clip> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use echo_motion::skeleton::NUM_JOINTS;
     use echo_motion::synth::{generate, Split};
 
     #[test]

@@ -6,9 +6,11 @@ pub mod behaviour;
 pub mod harness;
 pub mod metrics;
 pub mod render;
+pub mod symmetry;
 pub mod window;
 
 pub use harness::{evaluate, Report};
+pub use symmetry::Symmetrized;
 pub use window::{
     windows, DampedVelocity, Predictor, Window, HORIZONS_S, OBS_FRAMES, PRED_FRAMES, RATE_HZ,
 };

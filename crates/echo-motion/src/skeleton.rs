@@ -14,6 +14,11 @@ pub const PARENTS: [i32; NUM_JOINTS] = [
     -1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19,
 ];
 
+/// Left/right counterpart of each joint (itself on the midline): what a mirror image exchanges.
+pub const MIRROR: [usize; NUM_JOINTS] = [
+    0, 2, 1, 3, 5, 4, 6, 8, 7, 9, 11, 10, 12, 14, 13, 15, 17, 16, 19, 18, 21, 20,
+];
+
 /// Kinematic chains (also used for bone-length checks).
 pub const CHAINS: [&[usize]; 5] = [
     &[0, 2, 5, 8, 11],

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{anyhow, Result};
 use echo_eval::harness::{markdown_per_kind, markdown_responder, markdown_table};
 use echo_eval::window::{windows, ConstantVelocity, ZeroVelocity};
-use echo_eval::{evaluate, Predictor, Report};
+use echo_eval::{evaluate, Predictor, Report, Symmetrized};
 use echo_motion::synth::{generate_split, Split, KINDS};
 
 use super::data::progress;
@@ -66,6 +66,11 @@ pub struct Args {
     /// The description given to text-conditioned models with --bvh-pair.
     #[arg(long)]
     pub prompt: Option<String>,
+    /// Also score each --model symmetrized: its forecasts of the scene, its mirror image and
+    /// with the roles exchanged, averaged (`echo_eval::symmetry`; for descriptions that name no
+    /// role or side, such as real captures' prompts).
+    #[arg(long)]
+    pub symmetric: bool,
     /// Also score damped-velocity extrapolation with this time constant, s (repeatable).
     #[arg(long)]
     pub damped_tau: Vec<f64>,
@@ -380,8 +385,10 @@ pub fn run(args: Args) -> Result<()> {
             .file_name()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| stem.display().to_string());
-        let mut p = ck.predictor(&name);
-        reports.push(evaluate(&mut p, &w, 64));
+        reports.push(evaluate(&mut ck.predictor(&name), &w, 64));
+        if args.symmetric {
+            reports.push(evaluate(&mut Symmetrized(ck.predictor(&name)), &w, 16));
+        }
     }
     println!(
         "{what}; {} windows (observe 0.53 s, predict 1.53 s at 15 Hz), errors in mm\n",
