@@ -108,9 +108,10 @@ pub struct CheckpointMeta {
 }
 
 impl CheckpointMeta {
-    /// Read `<stem>.json`; the file is named in any error.
+    /// Read `<stem>.json` (`stem` resolved by [`echo_assets::resolve_model`]); the file is
+    /// named in any error.
     pub fn load(stem: &Path) -> anyhow::Result<CheckpointMeta> {
-        let jp = stem.with_extension("json");
+        let jp = echo_assets::resolve_model(stem)?.with_extension("json");
         serde_json::from_slice(
             &std::fs::read(&jp).map_err(|e| anyhow::anyhow!("{}: {e}", jp.display()))?,
         )
@@ -145,7 +146,10 @@ impl Checkpoint {
 
     /// Load `<stem>.safetensors` and `<stem>.json`, and the sentence encoder the model was
     /// trained with when it reads text; a missing tensor or encoder is named.
+    /// `stem` is resolved by [`echo_assets::resolve_model`] (`$ECHO_MODELS`, the installation,
+    /// the working directory).
     pub fn load(stem: &Path, dev: &Device) -> anyhow::Result<Checkpoint> {
+        let stem = &echo_assets::resolve_model(stem)?;
         let meta = CheckpointMeta::load(stem)?;
         let wp = stem.with_extension("safetensors");
         let bytes = std::fs::read(&wp).map_err(|e| anyhow::anyhow!("{}: {e}", wp.display()))?;

@@ -485,7 +485,7 @@ fn check_order(
 
 /// The ONNX model of `<stem>.safetensors` for architecture `cfg`.
 pub fn build_checkpoint(stem: &Path, cfg: &ForecasterConfig) -> Result<ModelProto> {
-    let wp = stem.with_extension("safetensors");
+    let wp = echo_assets::resolve_model(stem)?.with_extension("safetensors");
     let weights = candle_core::safetensors::load(&wp, &Device::Cpu)
         .with_context(|| format!("reading {}", wp.display()))?;
     build(weights, cfg)

@@ -17,9 +17,8 @@ use ort::value::Tensor;
 /// File name of the library `scripts/setup` installs.
 pub const DYLIB: &str = "libonnxruntime.so.1.31.1";
 
-/// Where ONNX Runtime is looked for, in order: `$ECHO_ORT_DYLIB`, `$ORT_DYLIB_PATH`,
-/// `$ECHO_CACHE/onnxruntime/`, `.cache/onnxruntime/` in the current directory or a parent, and
-/// the repository's `.cache` this crate was built from.
+/// Where ONNX Runtime is looked for, in order: `$ECHO_ORT_DYLIB`, `$ORT_DYLIB_PATH`, then
+/// `onnxruntime/` in every fetched-asset directory ([`echo_assets::cache_dirs`]).
 pub fn dylib_candidates() -> Vec<PathBuf> {
     let mut v = vec![];
     for var in ["ECHO_ORT_DYLIB", "ORT_DYLIB_PATH"] {
@@ -27,18 +26,10 @@ pub fn dylib_candidates() -> Vec<PathBuf> {
             v.push(PathBuf::from(p));
         }
     }
-    if let Ok(p) = std::env::var("ECHO_CACHE") {
-        v.push(Path::new(&p).join("onnxruntime").join(DYLIB));
-    }
-    if let Ok(cwd) = std::env::current_dir() {
-        for d in cwd.ancestors() {
-            v.push(d.join(".cache/onnxruntime").join(DYLIB));
-        }
-    }
-    v.push(
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../.cache/onnxruntime")
-            .join(DYLIB),
+    v.extend(
+        echo_assets::cache_dirs("onnxruntime")
+            .into_iter()
+            .map(|d| d.join(DYLIB)),
     );
     v
 }

@@ -102,6 +102,7 @@ impl Retargeter {
 
     /// Load `<stem>.safetensors` + `<stem>.json` for `model`.
     pub fn load(stem: &Path, model: RobotModel) -> Result<Retargeter> {
+        let stem = &echo_assets::resolve_model(stem)?;
         let jp = stem.with_extension("json");
         let meta: RetargeterMeta = serde_json::from_slice(
             &std::fs::read(&jp).with_context(|| format!("reading {}", jp.display()))?,

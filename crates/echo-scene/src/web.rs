@@ -27,23 +27,14 @@ pub const THREE_JS: &str = "three.module.js";
 /// three.js' orbit controls (imports `three`).
 pub const ORBIT_JS: &str = "OrbitControls.js";
 
-/// Where three.js is looked for, in order: `$ECHO_WEB_ASSETS`, `$ECHO_CACHE/web`, `.cache/web`
-/// in the current directory or any parent, and the repository's `.cache/web` this crate was
-/// built from.
+/// Where three.js is looked for, in order: `$ECHO_WEB_ASSETS`, then `web` in every
+/// fetched-asset directory ([`echo_assets::cache_dirs`]).
 pub fn asset_dirs() -> Vec<PathBuf> {
     let mut v = vec![];
     if let Ok(p) = std::env::var("ECHO_WEB_ASSETS") {
         v.push(PathBuf::from(p));
     }
-    if let Ok(p) = std::env::var("ECHO_CACHE") {
-        v.push(Path::new(&p).join("web"));
-    }
-    if let Ok(cwd) = std::env::current_dir() {
-        for d in cwd.ancestors() {
-            v.push(d.join(".cache").join("web"));
-        }
-    }
-    v.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../.cache/web"));
+    v.extend(echo_assets::cache_dirs("web"));
     v
 }
 

@@ -56,27 +56,15 @@ pub struct SentenceEncoder {
     cache: Mutex<HashMap<String, Vec<f32>>>,
 }
 
-/// Where the default encoder's files are looked for, in order: `$ECHO_TEXT_ENCODER`,
-/// `$ECHO_CACHE/all-minilm-l6-v2`, `.cache/all-minilm-l6-v2` in the current directory or any
-/// parent, and the repository's `.cache` this crate was built from.
+/// Where the default encoder's files are looked for, in order: `$ECHO_TEXT_ENCODER`, then
+/// `all-minilm-l6-v2` in every fetched-asset directory ([`echo_assets::cache_dirs`]:
+/// `$ECHO_CACHE`, the installation, `.cache` here or in a parent, the build checkout).
 pub fn candidate_dirs() -> Vec<PathBuf> {
     let mut v = vec![];
     if let Ok(p) = std::env::var("ECHO_TEXT_ENCODER") {
         v.push(PathBuf::from(p));
     }
-    if let Ok(p) = std::env::var("ECHO_CACHE") {
-        v.push(Path::new(&p).join(MINILM_DIR));
-    }
-    if let Ok(cwd) = std::env::current_dir() {
-        for d in cwd.ancestors() {
-            v.push(d.join(".cache").join(MINILM_DIR));
-        }
-    }
-    v.push(
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../.cache")
-            .join(MINILM_DIR),
-    );
+    v.extend(echo_assets::cache_dirs(MINILM_DIR));
     v
 }
 

@@ -280,3 +280,35 @@ fn data_specs_train_and_evaluate_end_to_end() {
     let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     assert_eq!(r[0]["overall"]["windows"], 59);
 }
+
+#[test]
+fn shipped_models_are_found_outside_the_repository() {
+    // From an unrelated directory, `models/forecaster` resolves to the checkout's models (the
+    // binary lives in its target/); with ECHO_MODELS pointing nowhere useful it still does,
+    // and a name that exists nowhere is an error that says where it looked.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("f.onnx");
+    let run = |model: &str| {
+        Command::new(env!("CARGO_BIN_EXE_echoctl"))
+            .args(["export", "onnx", "--model", model, "--out"])
+            .arg(&out)
+            .current_dir(dir.path())
+            .env("ECHO_MODELS", dir.path())
+            .output()
+            .expect("run echoctl")
+    };
+    let ok = run("models/forecaster");
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    assert!(out.is_file());
+    let missing = run("models/no-such-model");
+    assert!(!missing.status.success());
+    let err = String::from_utf8_lossy(&missing.stderr);
+    assert!(
+        err.contains("not found") && err.contains("ECHO_MODELS"),
+        "{err}"
+    );
+}

@@ -538,7 +538,11 @@ pub fn run(args: Args) -> Result<()> {
         text: text.as_ref(),
         state: Some(args.out.clone()),
         resume: args.resume,
-        init: args.init.as_ref().map(|s| s.with_extension("safetensors")),
+        init: args
+            .init
+            .as_ref()
+            .map(|s| echo_assets::resolve_model(s).map(|p| p.with_extension("safetensors")))
+            .transpose()?,
         data,
     };
     let (varmap, log) = train(&model, &t, &run, &mut bar)?;

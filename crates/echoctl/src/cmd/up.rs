@@ -25,7 +25,7 @@ pub struct Args {
     #[arg(long, env = "ECHO_DEPLOY_DIR", default_value = "deploy")]
     pub deploy_dir: PathBuf,
     /// Where the model checkpoints are.
-    #[arg(long, env = "ECHO_MODELS_DIR", default_value = "models")]
+    #[arg(long, env = "ECHO_MODELS", default_value = "models")]
     pub models: PathBuf,
     /// Robots the forecaster serves besides --robot (comma-separated).
     #[arg(long, env = "ECHO_SERVE", value_delimiter = ',')]
