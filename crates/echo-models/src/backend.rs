@@ -4,7 +4,7 @@
 use candle_core::{Device, Tensor};
 
 use crate::model::ForecasterConfig;
-use crate::predictor::Checkpoint;
+use crate::checkpoint::Checkpoint;
 
 /// A forecaster at inference time.
 pub trait Backend: Send {

@@ -2,6 +2,7 @@
 //! [`echo_eval::Predictor`] so the evaluation harness scores it like any baseline.
 
 pub mod backend;
+pub mod checkpoint;
 pub mod features;
 pub mod model;
 pub mod optim;
@@ -10,4 +11,5 @@ pub mod robot_agent;
 pub mod train;
 
 pub use backend::{Backend, CandleBackend, ZeroVelocityBackend};
-pub use predictor::{Checkpoint, CheckpointMeta, ModelPredictor};
+pub use checkpoint::{Checkpoint, CheckpointMeta};
+pub use predictor::ModelPredictor;

@@ -7,6 +7,7 @@ pub mod bvh;
 pub mod capture;
 pub mod dataset;
 pub mod intergen;
+pub mod params;
 pub mod posing;
 pub mod rotation;
 pub mod scripted;

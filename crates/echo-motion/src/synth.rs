@@ -11,39 +11,12 @@ use echo_msgs::Interaction;
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
 
+pub use crate::params::{ClipParams, ParamRanges, Split, KINDS, WALKING_KINDS};
 use crate::posing::{arm_length, pose, to_arm_target, wrap, Intent};
 use crate::skeleton::{forward, j, Body, NUM_JOINTS};
 
 /// Frame rate of generated clips (the InterGen rate).
 pub const FPS: f64 = 30.0;
-
-/// Every generated interaction type (the 12 social ones plus idle).
-pub const KINDS: [Interaction; 13] = [
-    Interaction::Handshake,
-    Interaction::Wave,
-    Interaction::HighFive,
-    Interaction::Handover,
-    Interaction::Hug,
-    Interaction::Bow,
-    Interaction::PointAndLook,
-    Interaction::ApproachGreet,
-    Interaction::ShoulderTap,
-    Interaction::Imitation,
-    Interaction::Clap,
-    Interaction::WalkPast,
-    Interaction::Idle,
-];
-
-/// The interaction types of the walking clips: those performed on the way to, or past, the
-/// other person.
-pub const WALKING_KINDS: [Interaction; 6] = [
-    Interaction::Handshake,
-    Interaction::HighFive,
-    Interaction::Handover,
-    Interaction::Hug,
-    Interaction::ApproachGreet,
-    Interaction::WalkPast,
-];
 
 /// Speed profile of a walk of `dist` metres at up to `v` m/s with peak acceleration `acc`:
 /// raised-cosine ramps up and down (`v(τ) = v/2·(1 − cos(πτ/T))`, `T = πv/2acc`), a cruise in
@@ -75,121 +48,6 @@ pub fn smooth_walk(dist: f64, v: f64, acc: f64, t: f64) -> (f64, f64, f64) {
         return (x.min(dist), v / 2.0 * (1.0 + (PI * s / ta).cos()), total);
     }
     (dist, 0.0, total)
-}
-
-/// Ranges the clip parameters are drawn from.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ParamRanges {
-    /// Body heights, metres (a union of intervals).
-    pub height: Vec<(f64, f64)>,
-    /// Reaction delays, seconds.
-    pub delay: Vec<(f64, f64)>,
-    /// Start distance between the pelvises, metres.
-    pub distance: (f64, f64),
-    /// Walking speed, m/s.
-    pub speed: (f64, f64),
-    /// Motion amplitude factor.
-    pub amplitude: (f64, f64),
-}
-
-impl ParamRanges {
-    /// The training (and validation, test) ranges.
-    pub fn train() -> Self {
-        ParamRanges {
-            height: vec![(1.55, 1.90)],
-            delay: vec![(0.25, 0.8)],
-            distance: (1.2, 2.6),
-            speed: (0.7, 1.3),
-            amplitude: (0.8, 1.2),
-        }
-    }
-
-    /// The walking ranges: people start 2.4–5 m apart and walk at 0.6–1.5 m/s (real people walk
-    /// at a median 0.5–0.8 m/s, docs/RESULTS.md).
-    pub fn walking() -> Self {
-        ParamRanges {
-            distance: (2.4, 5.0),
-            speed: (0.6, 1.5),
-            ..Self::train()
-        }
-    }
-
-    /// The held-out ranges: heights and reaction delays outside the training ranges.
-    pub fn held_out() -> Self {
-        ParamRanges {
-            height: vec![(1.48, 1.55), (1.90, 1.97)],
-            delay: vec![(0.8, 1.2)],
-            ..Self::train()
-        }
-    }
-}
-
-fn draw(rng: &mut impl Rng, ranges: &[(f64, f64)]) -> f64 {
-    let total: f64 = ranges.iter().map(|(a, b)| b - a).sum();
-    let mut x = rng.random_range(0.0..total.max(1e-9));
-    for (a, b) in ranges {
-        if x <= b - a {
-            return a + x;
-        }
-        x -= b - a;
-    }
-    ranges.last().map_or(0.0, |r| r.1)
-}
-
-/// Parameters of one clip.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ClipParams {
-    /// Interaction.
-    pub kind: Interaction,
-    /// Seed (also of the noise).
-    pub seed: u64,
-    /// Heights of A and B.
-    pub heights: [f64; 2],
-    /// Start distance, metres.
-    pub distance: f64,
-    /// B's reaction delay, seconds.
-    pub delay: f64,
-    /// Walking speed, m/s.
-    pub speed: f64,
-    /// Right hand (true) or left.
-    pub right_handed: bool,
-    /// Amplitude factor.
-    pub amplitude: f64,
-    /// Scene placement: position and rotation.
-    pub placement: (f64, f64, f64),
-    /// Walk the way people walk ([`Split::walking_clip`]): approaches from further away at the
-    /// drawn speed, with smooth starts and stops (raised-cosine speed ramps, peak acceleration
-    /// 0.8–1.3 m/s²), gait and arm swing scaled with speed; handshakes, high fives and
-    /// handovers stop up to 0.3 m further apart and, in 60 % of clips, end with both stepping
-    /// back 0.2–0.6 m. `false`: the original choreography (short approaches; every existing
-    /// split).
-    pub locomotion: bool,
-}
-
-impl ClipParams {
-    /// Draw parameters for `kind` from `ranges` with `seed`.
-    pub fn sample(kind: Interaction, ranges: &ParamRanges, seed: u64) -> ClipParams {
-        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-        ClipParams {
-            kind,
-            seed,
-            heights: [
-                draw(&mut rng, &ranges.height),
-                draw(&mut rng, &ranges.height),
-            ],
-            distance: rng.random_range(ranges.distance.0..ranges.distance.1),
-            delay: draw(&mut rng, &ranges.delay),
-            speed: rng.random_range(ranges.speed.0..ranges.speed.1),
-            right_handed: rng.random::<f64>() < 0.85,
-            amplitude: rng.random_range(ranges.amplitude.0..ranges.amplitude.1),
-            placement: (
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-PI..PI),
-            ),
-            locomotion: false,
-        }
-    }
 }
 
 /// A generated clip.
@@ -839,76 +697,6 @@ mod tests {
                 .all(|h| *h < tr.height[0].0 || *h > tr.height[0].1));
             assert!(p.delay >= tr.delay[0].1);
         }
-    }
-}
-
-/// Dataset splits: disjoint seed ranges; the held-out split also draws from the held-out ranges.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Split {
-    /// Training.
-    Train,
-    /// Validation.
-    Val,
-    /// Test.
-    Test,
-    /// Out-of-range generalisation test.
-    HeldOut,
-}
-
-impl Split {
-    /// First seed of the split.
-    pub fn seed_base(self) -> u64 {
-        match self {
-            Split::Train => 0,
-            Split::Val => 1_000_000_000,
-            Split::Test => 2_000_000_000,
-            Split::HeldOut => 3_000_000_000,
-        }
-    }
-
-    /// Parameter ranges of the split.
-    pub fn ranges(self) -> ParamRanges {
-        match self {
-            Split::HeldOut => ParamRanges::held_out(),
-            _ => ParamRanges::train(),
-        }
-    }
-
-    /// Parse "train", "val", "test", "held-out".
-    pub fn parse(s: &str) -> Option<Split> {
-        match s {
-            "train" => Some(Split::Train),
-            "val" => Some(Split::Val),
-            "test" => Some(Split::Test),
-            "held-out" | "heldout" => Some(Split::HeldOut),
-            _ => None,
-        }
-    }
-
-    /// Parameters of clip `i` of the split (types cycle through [`KINDS`]).
-    pub fn clip(self, i: u64) -> ClipParams {
-        let kind = KINDS[(i % KINDS.len() as u64) as usize];
-        ClipParams::sample(kind, &self.ranges(), self.seed_base() + i)
-    }
-}
-
-impl Split {
-    /// The `i`-th walking clip of the split ([`WALKING_KINDS`] in turn, walking ranges, seeds
-    /// 500 000 000 after the split's own).
-    pub fn walking_clip(self, i: u64) -> ClipParams {
-        let kind = WALKING_KINDS[(i % WALKING_KINDS.len() as u64) as usize];
-        let ranges = match self {
-            Split::HeldOut => ParamRanges {
-                distance: (2.4, 5.0),
-                speed: (0.6, 1.5),
-                ..ParamRanges::held_out()
-            },
-            _ => ParamRanges::walking(),
-        };
-        let mut p = ClipParams::sample(kind, &ranges, self.seed_base() + 500_000_000 + i);
-        p.locomotion = true;
-        p
     }
 }
 

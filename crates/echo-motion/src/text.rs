@@ -6,7 +6,7 @@ use echo_msgs::Interaction;
 use rand::seq::SliceRandom;
 use rand::Rng;
 
-use crate::synth::ClipParams;
+use crate::params::ClipParams;
 
 fn templates(kind: Interaction) -> &'static [&'static str] {
     match kind {
@@ -95,9 +95,9 @@ mod tests {
 
     #[test]
     fn two_or_three_distinct_descriptions_with_the_hand() {
-        for kind in crate::synth::KINDS {
+        for kind in crate::params::KINDS {
             for seed in 0..5 {
-                let mut p = ClipParams::sample(kind, &crate::synth::ParamRanges::train(), seed);
+                let mut p = ClipParams::sample(kind, &crate::params::ParamRanges::train(), seed);
                 p.right_handed = false;
                 let d = describe(&p, &mut rand::rngs::StdRng::seed_from_u64(seed));
                 assert!((2..=3).contains(&d.len()));
