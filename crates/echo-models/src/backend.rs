@@ -3,8 +3,8 @@
 
 use candle_core::{Device, Tensor};
 
-use crate::model::ForecasterConfig;
 use crate::checkpoint::Checkpoint;
+use crate::model::ForecasterConfig;
 
 /// A forecaster at inference time.
 pub trait Backend: Send {

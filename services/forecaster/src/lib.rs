@@ -43,8 +43,8 @@ pub struct Args {
     pub model: PathBuf,
     /// Inference backend: candle, onnx (the checkpoint exported at start-up and run by ONNX
     /// Runtime), or zero-velocity (the baseline, no model).
-    #[arg(long, env = "ECHO_FORECAST_BACKEND", default_value = "candle")]
-    pub backend: String,
+    #[arg(long, env = "ECHO_FORECAST_BACKEND", value_enum, default_value_t = BackendKind::Candle)]
+    pub backend: BackendKind,
     /// How long a robot's new frame waits for other robots' frames to share its batch, ms.
     #[arg(long, default_value_t = 3)]
     pub batch_window_ms: u64,
@@ -154,6 +154,25 @@ async fn follow_failover(
     }
 }
 
+/// The forecaster's inference backends.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum BackendKind {
+    /// The checkpoint run by candle.
+    Candle,
+    /// The checkpoint exported to ONNX at start-up and run by ONNX Runtime.
+    Onnx,
+    /// The zero-velocity baseline (no model).
+    ZeroVelocity,
+}
+
+impl std::fmt::Display for BackendKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        use clap::ValueEnum;
+        let v = self.to_possible_value().expect("no skipped variants");
+        f.write_str(v.get_name())
+    }
+}
+
 /// Load the backend named by `args` and the sentence encoder its model needs.
 pub fn load_backend(
     args: &Args,
@@ -167,15 +186,14 @@ pub fn load_backend(
         .file_name()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "forecaster".into());
-    let backend: Box<dyn Backend> = match args.backend.as_str() {
-        "candle" => Box::new(CandleBackend::new(ck, dev)),
-        "onnx" => Box::new(echo_onnx::OrtBackend::from_checkpoint(
+    let backend: Box<dyn Backend> = match args.backend {
+        BackendKind::Candle => Box::new(CandleBackend::new(ck, dev)),
+        BackendKind::Onnx => Box::new(echo_onnx::OrtBackend::from_checkpoint(
             &args.model,
             ck.meta.model.clone(),
             0,
         )?),
-        "zero-velocity" => Box::new(ZeroVelocityBackend::new(ck.meta.model.clone())),
-        other => anyhow::bail!("unknown backend '{other}' (candle, onnx, zero-velocity)"),
+        BackendKind::ZeroVelocity => Box::new(ZeroVelocityBackend::new(ck.meta.model.clone())),
     };
     Ok((backend, text, name))
 }

@@ -21,8 +21,9 @@ use echo_sim::scenario::bridge_inputs;
 /// Options.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
-    /// What to measure: bridge, safety, forecaster or bus.
-    pub what: String,
+    /// What to measure.
+    #[arg(value_enum)]
+    pub what: Bench,
     /// Checkpoint for `forecaster`.
     #[arg(long, default_value = "models/forecaster")]
     pub model: std::path::PathBuf,
@@ -39,8 +40,8 @@ pub struct Args {
     #[arg(long, default_value = "models/hri")]
     pub e2e_model: std::path::PathBuf,
     /// `e2e`: the forecaster's backend.
-    #[arg(long, default_value = "candle")]
-    pub backend: String,
+    #[arg(long, value_enum, default_value_t = forecaster::BackendKind::Candle)]
+    pub backend: forecaster::BackendKind,
     /// `forecaster`: time an untrained model of this width instead (`--model`'s architecture
     /// and prompt encoder otherwise; one head per 16 channels) — what a larger model costs.
     #[arg(long)]
@@ -50,16 +51,31 @@ pub struct Args {
     pub self_layers: usize,
 }
 
+/// The benchmarks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Bench {
+    /// The perception bridge's processing of one keypoint frame.
+    Bridge,
+    /// One safety control cycle.
+    Safety,
+    /// Forecaster inference per backend and batch size.
+    Forecaster,
+    /// A message through Zenoh between two sessions.
+    Bus,
+    /// The whole pipeline as processes, per number of robots.
+    E2e,
+}
+
 /// Run the chosen benchmark and print a one-line summary per case.
 pub async fn run(args: Args) -> Result<()> {
-    match args.what.as_str() {
-        "bridge" => bridge(args.samples),
-        "bus" => bus(args.samples).await,
-        "safety" => {
+    match args.what {
+        Bench::Bridge => bridge(args.samples),
+        Bench::Bus => bus(args.samples).await,
+        Bench::Safety => {
             safety(args.samples);
             Ok(())
         }
-        "forecaster" => match args.d_model {
+        Bench::Forecaster => match args.d_model {
             Some(d) => {
                 let stem = untrained(&args.model, d, args.self_layers)?;
                 let r = forecaster(&stem, args.samples);
@@ -69,10 +85,7 @@ pub async fn run(args: Args) -> Result<()> {
             }
             None => forecaster(&args.model, args.samples),
         },
-        "e2e" => e2e(&args).await,
-        other => {
-            anyhow::bail!("unknown benchmark '{other}' (bridge, bus, safety, forecaster, e2e)")
-        }
+        Bench::E2e => e2e(&args).await,
     }
 }
 
@@ -97,7 +110,7 @@ async fn e2e(args: &Args) -> Result<()> {
             with_safety: 1,
             seconds: args.seconds,
             model: args.e2e_model.clone(),
-            backend: args.backend.clone(),
+            backend: args.backend,
             log_dir: log_dir.clone(),
             rss_every: None,
         })

@@ -8,8 +8,9 @@ use anyhow::Result;
 /// Options.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
-    /// Format (onnx).
-    pub format: String,
+    /// Format.
+    #[arg(value_enum)]
+    pub format: ExportFormat,
     /// Checkpoint stem.
     #[arg(long, default_value = "models/forecaster")]
     pub model: PathBuf,
@@ -18,13 +19,16 @@ pub struct Args {
     pub out: Option<PathBuf>,
 }
 
+/// Export formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ExportFormat {
+    /// ONNX, opset 17, dynamic batch.
+    Onnx,
+}
+
 /// Export.
 pub fn run(args: Args) -> Result<()> {
-    anyhow::ensure!(
-        args.format == "onnx",
-        "only 'onnx' export exists, not '{}'",
-        args.format
-    );
+    let ExportFormat::Onnx = args.format;
     let out = args
         .out
         .clone()

@@ -36,8 +36,8 @@ pub struct FleetOptions {
     pub seconds: f64,
     /// Forecaster checkpoint (an HRI model makes robot plans, so commands follow).
     pub model: PathBuf,
-    /// Forecaster backend (candle, onnx, zero-velocity).
-    pub backend: String,
+    /// Forecaster backend.
+    pub backend: forecaster::BackendKind,
     /// Where the services' logs go (the caller removes them once it has judged the run).
     pub log_dir: PathBuf,
     /// Sample every child's resident memory this often (soak).
@@ -154,7 +154,7 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
         "--model".into(),
         opts.model.display().to_string(),
         "--backend".into(),
-        opts.backend.clone(),
+        opts.backend.to_string(),
     ]);
     if ids.len() > 1 {
         fc.push("--robots".into());

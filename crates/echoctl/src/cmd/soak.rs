@@ -21,8 +21,8 @@ pub struct Args {
     #[arg(long, default_value = "models/hri")]
     pub model: PathBuf,
     /// Forecaster backend.
-    #[arg(long, default_value = "candle")]
-    pub backend: String,
+    #[arg(long, value_enum, default_value_t = forecaster::BackendKind::Candle)]
+    pub backend: forecaster::BackendKind,
     /// Largest resident-memory growth allowed per process, MiB.
     #[arg(long, default_value_t = 32.0)]
     pub max_rss_growth_mib: f64,
@@ -60,7 +60,7 @@ pub async fn run_soak(args: Args) -> Result<()> {
         with_safety: args.robots.max(1),
         seconds: args.seconds,
         model: args.model.clone(),
-        backend: args.backend.clone(),
+        backend: args.backend,
         log_dir: log_dir.clone(),
         rss_every: Some(every),
     })

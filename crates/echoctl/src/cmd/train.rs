@@ -68,8 +68,9 @@ pub enum SocialInit {
 /// Options.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
-    /// What to train: forecaster or retargeter.
-    pub what: String,
+    /// What to train.
+    #[arg(value_enum)]
+    pub what: Trainable,
     /// HRI: how the interaction and imitation losses enter (none, fixed, adaptive).
     #[arg(long, default_value = "adaptive")]
     pub social: String,
@@ -439,19 +440,24 @@ fn hri(args: &Args) -> Result<()> {
     Ok(())
 }
 
+/// What `echoctl train` trains.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Trainable {
+    /// The dual-agent forecaster on human–human data.
+    Forecaster,
+    /// The human→robot retargeter (ImitationNet).
+    Retargeter,
+    /// The human–robot forecaster (HRI losses through the robot's FK).
+    Hri,
+}
+
 /// Train and save.
 pub fn run(args: Args) -> Result<()> {
-    if args.what == "retargeter" {
-        return retargeter(&args);
+    match args.what {
+        Trainable::Retargeter => return retargeter(&args),
+        Trainable::Hri => return hri(&args),
+        Trainable::Forecaster => {}
     }
-    if args.what == "hri" {
-        return hri(&args);
-    }
-    anyhow::ensure!(
-        args.what == "forecaster",
-        "'{}' cannot be trained (forecaster, retargeter, hri)",
-        args.what
-    );
     if args.replot {
         let csv = args.out.with_extension("loss.csv");
         let text = std::fs::read_to_string(&csv)?;
