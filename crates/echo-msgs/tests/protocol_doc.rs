@@ -1,23 +1,67 @@
-//! Every JSON example in docs/PROTOCOL.md decodes and validates as the message it is listed as.
+//! Every JSON example in docs/PROTOCOL.md decodes and validates as the message it is listed as,
+//! and encoding the decoded message gives back the example's bytes (whitespace aside): the doc
+//! shows exactly what goes on the wire, field order and number format included.
 
 use echo_msgs::*;
 
+/// The JSON text without the whitespace between tokens (strings kept as they are).
+fn minify(json: &str) -> String {
+    let mut out = String::with_capacity(json.len());
+    let (mut in_string, mut escaped) = (false, false);
+    for c in json.chars() {
+        if in_string {
+            out.push(c);
+            match (escaped, c) {
+                (true, _) => escaped = false,
+                (false, '\\') => escaped = true,
+                (false, '"') => in_string = false,
+                _ => {}
+            }
+        } else if c == '"' {
+            in_string = true;
+            out.push(c);
+        } else if !c.is_whitespace() {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// Decode `json` as `M`, re-encode it: the bytes the wire would carry.
+fn roundtrip<M: Message>(json: &str) -> Result<Vec<u8>, DecodeError> {
+    decode::<M>(json.as_bytes()).map(|m| encode(&m))
+}
+
 fn check(kind: &str, json: &str) -> Result<(), String> {
-    let b = json.as_bytes();
     let r = match kind {
-        "keypoint_frame" => decode::<KeypointFrame>(b).map(drop),
-        "human_skeletons" => decode::<HumanSkeletons>(b).map(drop),
-        "joint_state" => decode::<JointState>(b).map(drop),
-        "interaction_intent" => decode::<InteractionIntent>(b).map(drop),
-        "forecast" => decode::<Forecast>(b).map(drop),
-        "robot_plan" => decode::<RobotPlan>(b).map(drop),
-        "robot_command" => decode::<RobotCommand>(b).map(drop),
-        "safety_status" => decode::<SafetyStatus>(b).map(drop),
-        "estop" => decode::<EStop>(b).map(drop),
-        "service_status" => decode::<ServiceStatus>(b).map(drop),
+        "keypoint_frame" => roundtrip::<KeypointFrame>(json),
+        "human_skeletons" => roundtrip::<HumanSkeletons>(json),
+        "joint_state" => roundtrip::<JointState>(json),
+        "interaction_intent" => roundtrip::<InteractionIntent>(json),
+        "forecast" => roundtrip::<Forecast>(json),
+        "robot_plan" => roundtrip::<RobotPlan>(json),
+        "robot_command" => roundtrip::<RobotCommand>(json),
+        "safety_status" => roundtrip::<SafetyStatus>(json),
+        "estop" => roundtrip::<EStop>(json),
+        "service_status" => roundtrip::<ServiceStatus>(json),
         other => return Err(format!("unknown message kind '{other}' in the doc")),
     };
-    r.map_err(|e| format!("{kind}: {e}"))
+    let bytes = r.map_err(|e| format!("{kind}: {e}"))?;
+    let (wire, doc) = (String::from_utf8_lossy(&bytes), minify(json));
+    if wire != doc {
+        return Err(format!(
+            "{kind}: re-encoded bytes differ from the doc's example\n doc:  {doc}\n wire: {wire}"
+        ));
+    }
+    Ok(())
+}
+
+#[test]
+fn minify_keeps_strings_and_drops_layout() {
+    assert_eq!(
+        minify("{ \"a b\" : [1, 2],\n  \"c\": \"x \\\" y\" }"),
+        "{\"a b\":[1,2],\"c\":\"x \\\" y\"}"
+    );
 }
 
 #[test]
