@@ -327,6 +327,7 @@ pub async fn serve(args: Args, stop: Shutdown) -> Result<()> {
         &stats,
         Duration::from_millis(args.batch_window_ms),
         robots.len(),
+        echo_msgs::now_ns,
     )
     .await?;
     let _ = tokio::time::timeout(Duration::from_secs(2), reporter).await;
@@ -361,9 +362,9 @@ pub mod edges {
     pub const WAVE: &str = "plan_wave_refined";
 }
 
-fn handle(server: &mut ForecastServer, stats: &Stats, input: Input) {
+fn handle(server: &mut ForecastServer, stats: &Stats, input: Input, wall_now_ns: u64) {
     match input {
-        Input::Skeletons(r, m) => match server.on_skeletons(&r, &m.msg) {
+        Input::Skeletons(r, m) => match server.on_skeletons_at(&r, &m.msg, wall_now_ns, m.at) {
             Ok(Some(Push::Resynced { stalled_ms })) => {
                 stats.dropped(edges::RESYNC, 1);
                 tracing::warn!(
@@ -387,7 +388,9 @@ fn handle(server: &mut ForecastServer, stats: &Stats, input: Input) {
 
 /// Run over `inputs` until they end. After a frame makes a robot ready, inputs are taken for up
 /// to `window` more (or until all `robots` are ready) so their forecasts share one batch.
-/// Returns the server's counters.
+/// `wall_now_ns` reads the receiver's wall clock (frames stamped too far ahead of it are
+/// refused); each input's own receive instant is its monotonic time. Returns the server's
+/// counters.
 pub async fn run<S, O>(
     mut inputs: S,
     output: &mut O,
@@ -395,6 +398,7 @@ pub async fn run<S, O>(
     stats: &Stats,
     window: Duration,
     robots: usize,
+    wall_now_ns: impl Fn() -> u64,
 ) -> Result<Counters>
 where
     S: Stream<Item = Input> + Unpin,
@@ -405,14 +409,14 @@ where
         let Some(input) = inputs.next().await else {
             break;
         };
-        handle(&mut server, stats, input);
+        handle(&mut server, stats, input, wall_now_ns());
         if server.pending() == 0 {
             continue;
         }
         let deadline = tokio::time::Instant::now() + window;
         while server.pending() < robots {
             match tokio::time::timeout_at(deadline, inputs.next()).await {
-                Ok(Some(i)) => handle(&mut server, stats, i),
+                Ok(Some(i)) => handle(&mut server, stats, i, wall_now_ns()),
                 Ok(None) => {
                     ended = true;
                     break;

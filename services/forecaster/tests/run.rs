@@ -81,6 +81,7 @@ async fn frames_of_three_robots_in_one_tick_share_a_batch() {
         &stats,
         Duration::from_millis(50),
         3,
+        echo_msgs::now_ns,
     )
     .await
     .unwrap();
@@ -106,6 +107,7 @@ async fn a_lone_robot_is_forecast_at_once() {
         &stats,
         Duration::from_secs(5),
         1,
+        echo_msgs::now_ns,
     )
     .await
     .unwrap();
@@ -143,6 +145,7 @@ async fn paced_with_a_forged_frame(forged: Input, frames: u64) -> (Instant, Coll
         &stats,
         Duration::from_millis(3),
         1,
+        echo_msgs::now_ns,
     )
     .await
     .unwrap();
