@@ -14,6 +14,7 @@ pub mod inbox;
 pub mod ingress;
 pub mod keys;
 pub mod liveliness;
+pub mod observer;
 pub mod shutdown;
 pub mod stats;
 pub mod telemetry;

@@ -4,6 +4,7 @@
 
 pub mod behaviour;
 pub mod harness;
+pub mod live;
 pub mod metrics;
 pub mod render;
 pub mod symmetry;

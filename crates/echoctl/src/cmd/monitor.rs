@@ -2,9 +2,9 @@
 
 use std::time::Duration;
 
-use anyhow::{anyhow, Result};
+use anyhow::Result;
+use echo_bus::observer::{self, Observation};
 use echo_bus::{Bus, BusArgs};
-use echo_msgs::now_ns;
 
 /// Options.
 #[derive(Debug, Clone, clap::Args)]
@@ -25,44 +25,28 @@ pub struct Args {
     pub duration: Option<f64>,
 }
 
-/// Print messages on `key` until interrupted, `count` messages or `duration` seconds.
+/// Print messages on `key` until interrupted, `count` messages or `duration` seconds. Messages
+/// on Echo's topics are decoded and validated as their topic's type (`echo_bus::observer`): an
+/// invalid one is printed with the reason it would be refused.
 pub async fn run(args: Args) -> Result<()> {
     let bus = Bus::open(&args.bus, "echoctl-monitor").await?;
-    let sub = bus
-        .session()
-        .declare_subscriber(args.key.as_str())
-        .await
-        .map_err(|e| anyhow!("subscribing to {}: {e}", args.key))?;
+    let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel();
+    let sub = observer::observe(&bus, &args.key, move |ob| {
+        let _ = tx.send(ob);
+    })
+    .await?;
     let deadline = args
         .duration
         .map(|d| tokio::time::Instant::now() + Duration::from_secs_f64(d));
     let mut seen = 0usize;
     let mut stop = echo_bus::shutdown::on_signals();
     loop {
-        let sample = tokio::select! {
-            s = sub.recv_async() => match s { Ok(s) => s, Err(_) => break },
+        let ob = tokio::select! {
+            o = rx.recv() => match o { Some(o) => o, None => break },
             _ = stop.wait() => break,
             _ = async { match deadline { Some(d) => tokio::time::sleep_until(d).await, None => std::future::pending().await } } => break,
         };
-        let bytes = sample.payload().to_bytes();
-        let key = sample.key_expr().as_str().to_string();
-        let body = match serde_json::from_slice::<serde_json::Value>(&bytes) {
-            Ok(v) => {
-                let age = v
-                    .pointer("/header/stamp_ns")
-                    .and_then(|s| s.as_u64())
-                    .map(|s| format!(" age {:.1} ms", (now_ns() as f64 - s as f64) / 1e6))
-                    .unwrap_or_default();
-                let text = if args.compact {
-                    serde_json::to_string(&v)?
-                } else {
-                    serde_json::to_string_pretty(&v)?
-                };
-                format!("{age}\n{text}")
-            }
-            Err(e) => format!(" ({} bytes, not JSON: {e})", bytes.len()),
-        };
-        println!("--- {key}{body}");
+        println!("--- {}{}", ob.key, describe(&ob, args.compact)?);
         seen += 1;
         if args.count.is_some_and(|c| seen >= c) {
             break;
@@ -70,4 +54,22 @@ pub async fn run(args: Args) -> Result<()> {
     }
     drop(sub);
     bus.close().await
+}
+
+/// The age, validity and body of one observed message.
+fn describe(ob: &Observation, compact: bool) -> Result<String> {
+    let verdict = match &ob.message {
+        Some(Ok(_)) => ob
+            .age_ms()
+            .map(|a| format!(" age {a:.1} ms"))
+            .unwrap_or_default(),
+        Some(Err(e)) => format!(" INVALID: {e}"),
+        None => String::new(),
+    };
+    let body = match serde_json::from_slice::<serde_json::Value>(&ob.payload) {
+        Ok(v) if compact => serde_json::to_string(&v)?,
+        Ok(v) => serde_json::to_string_pretty(&v)?,
+        Err(e) => format!("({} bytes, not JSON: {e})", ob.payload.len()),
+    };
+    Ok(format!("{verdict}\n{body}"))
 }

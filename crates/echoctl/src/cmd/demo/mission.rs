@@ -3,7 +3,8 @@
 //! (`echo_eval::behaviour`).
 
 use echo_eval::behaviour::{self, InteractionReport, Sample};
-use echo_msgs::SafetyState;
+use echo_eval::live::joints_of;
+use echo_msgs::{HumanSkeletons, JointState, SafetyState, SafetyStatus};
 use echo_robot::collision::RobotBody;
 use echo_robot::{JointValues, RobotModel};
 use echo_sim::mission::Mission;
@@ -46,22 +47,13 @@ impl MissionObserver {
     }
 
     /// A `robot/state` message.
-    pub fn on_state(&mut self, v: &serde_json::Value) {
-        let (Some(names), Some(pos)) = (v.get("name"), v.get("position")) else {
-            return;
-        };
-        let (Ok(names), Ok(pos)) = (
-            serde_json::from_value::<Vec<String>>(names.clone()),
-            serde_json::from_value::<Vec<f64>>(pos.clone()),
-        ) else {
-            return;
-        };
+    pub fn on_state(&mut self, js: &JointState) {
         let m = &self.model;
         self.q = m
             .values_from(
-                names
+                js.name
                     .iter()
-                    .zip(&pos)
+                    .zip(&js.position)
                     .filter(|(n, p)| m.joint_index(n).is_some() && p.is_finite())
                     .map(|(n, p)| (n.as_str(), *p)),
             )
@@ -69,30 +61,23 @@ impl MissionObserver {
     }
 
     /// A `safety/status` message.
-    pub fn on_safety(&mut self, v: &serde_json::Value) {
-        if let Some(s) = v
-            .get("state")
-            .and_then(|s| serde_json::from_value::<SafetyState>(s.clone()).ok())
-        {
-            self.safety = Some(s);
-        }
+    pub fn on_safety(&mut self, st: &SafetyStatus) {
+        self.safety = Some(st.state);
     }
 
     /// A `humans` message: one sample at its capture stamp.
-    pub fn on_humans(&mut self, v: &serde_json::Value) {
-        let (Some(q), Some(stamp)) = (
-            &self.q,
-            v.pointer("/header/stamp_ns").and_then(|x| x.as_u64()),
-        ) else {
+    pub fn on_humans(&mut self, h: &HumanSkeletons) {
+        let Some(q) = &self.q else {
             return;
         };
+        let stamp = h.header.stamp_ns;
         if self.samples.len() >= 100_000 {
             return;
         }
-        let partner = v
-            .get("partner_id")
-            .and_then(|x| x.as_u64())
-            .and_then(|id| super::joints_of(v, id))
+        let partner: Vec<[f64; 3]> = h
+            .partner_id
+            .and_then(|id| joints_of(h, id))
+            .map(<[_]>::to_vec)
             .unwrap_or_default();
         let frame = |f: &str| {
             self.model

@@ -21,12 +21,14 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
 use echo_bus::config::loopback_mesh;
+use echo_bus::observer::{self, Seen};
 use echo_bus::shutdown::{self, Shutdown, ShutdownTrigger};
 use echo_bus::stats::latency_summary;
 use echo_bus::topics;
 use echo_bus::{keys, Bus, BusArgs};
+use echo_eval::live::ForecastScore;
 use echo_launch::{Group, Logs, ProcessSpec, Stopped};
-use echo_msgs::{now_ns, ControlMode, Header, Interaction, InteractionIntent};
+use echo_msgs::{now_ns, ControlMode, Header, Interaction, InteractionIntent, ServiceStatus};
 
 use super::{mock_perception, mock_robot};
 
@@ -113,123 +115,6 @@ const IN_PROCESS: &[&str] = &[
     "mock-perception",
 ];
 
-/// Horizon at which the demo scores live forecasts against what the partner then did, frames.
-const SCORE_STEP: usize = 14;
-
-/// A forecast waiting for the partner's frame at its scored horizon.
-struct Pending {
-    due_ns: u64,
-    partner: u32,
-    predicted: Vec<[f64; 3]>,
-    held: Option<Vec<[f64; 3]>>,
-}
-
-/// Live forecast quality: mean joint error at 1.0 s of the model and of holding the pose.
-#[derive(Default)]
-struct ForecastScore {
-    pending: std::collections::VecDeque<Pending>,
-    last_partner: BTreeMap<u64, (u32, Vec<[f64; 3]>)>,
-    model_mm: Vec<f64>,
-    hold_mm: Vec<f64>,
-    inference_ms: Vec<f64>,
-}
-
-fn mean_mm(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
-    let n = a.len().min(b.len()).max(1) as f64;
-    a.iter()
-        .zip(b)
-        .map(|(p, q)| {
-            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
-        })
-        .sum::<f64>()
-        / n
-        * 1e3
-}
-
-fn joints_of(v: &serde_json::Value, id: u64) -> Option<Vec<[f64; 3]>> {
-    let tracks = v.get("tracks")?.as_array()?;
-    let t = tracks
-        .iter()
-        .find(|t| t.get("track_id").and_then(|x| x.as_u64()) == Some(id))?;
-    serde_json::from_value(t.pointer("/pose/joints")?.clone()).ok()
-}
-
-impl ForecastScore {
-    fn on_forecast(&mut self, v: &serde_json::Value) {
-        let (Some(stamp), Some(partner), Some(rate)) = (
-            v.pointer("/header/stamp_ns").and_then(|x| x.as_u64()),
-            v.get("partner_id").and_then(|x| x.as_u64()),
-            v.get("rate_hz").and_then(|x| x.as_f64()),
-        ) else {
-            return;
-        };
-        if let Some(ms) = v.get("inference_ms").and_then(|x| x.as_f64()) {
-            if self.inference_ms.len() < 100_000 {
-                self.inference_ms.push(ms);
-            }
-        }
-        let Some(predicted) = v
-            .pointer(&format!("/human/{SCORE_STEP}"))
-            .and_then(|x| serde_json::from_value::<Vec<[f64; 3]>>(x.clone()).ok())
-        else {
-            return;
-        };
-        let held = self
-            .last_partner
-            .get(&stamp)
-            .filter(|(id, _)| u64::from(*id) == partner)
-            .map(|(_, j)| j.clone());
-        let due_ns = stamp + ((SCORE_STEP + 1) as f64 / rate * 1e9) as u64;
-        if self.pending.len() < 1000 {
-            self.pending.push_back(Pending {
-                due_ns,
-                partner: partner as u32,
-                predicted,
-                held,
-            });
-        }
-    }
-
-    fn on_humans(&mut self, v: &serde_json::Value) {
-        let Some(stamp) = v.pointer("/header/stamp_ns").and_then(|x| x.as_u64()) else {
-            return;
-        };
-        if let Some(pid) = v.get("partner_id").and_then(|x| x.as_u64()) {
-            if let Some(j) = joints_of(v, pid) {
-                self.last_partner.insert(stamp, (pid as u32, j));
-                while self.last_partner.len() > 64 {
-                    self.last_partner.pop_first();
-                }
-            }
-        }
-        // Score forecasts whose horizon is this frame (within half a period).
-        while let Some(p) = self.pending.front() {
-            if p.due_ns > stamp + 33_000_000 {
-                break;
-            }
-            let p = self.pending.pop_front().expect("front exists");
-            if p.due_ns + 33_000_000 < stamp {
-                continue;
-            }
-            if let Some(actual) = joints_of(v, u64::from(p.partner)) {
-                self.model_mm.push(mean_mm(&p.predicted, &actual));
-                if let Some(h) = &p.held {
-                    self.hold_mm.push(mean_mm(h, &actual));
-                }
-            }
-        }
-    }
-
-    fn means(&self) -> Option<(f64, f64, usize)> {
-        if self.model_mm.is_empty() || self.hold_mm.is_empty() {
-            return None;
-        }
-        let m = self.model_mm.iter().sum::<f64>() / self.model_mm.len() as f64;
-        let h = self.hold_mm.iter().sum::<f64>() / self.hold_mm.len() as f64;
-        Some((m, h, self.model_mm.len()))
-    }
-}
-
 #[derive(Default)]
 struct KeyStats {
     count: u64,
@@ -240,7 +125,7 @@ struct KeyStats {
 #[derive(Default)]
 struct Observed {
     keys: BTreeMap<String, KeyStats>,
-    status: BTreeMap<String, serde_json::Value>,
+    status: BTreeMap<String, ServiceStatus>,
     partner_frames: u64,
     human_frames: u64,
     safety: Option<String>,
@@ -699,90 +584,66 @@ async fn stop_all(running: Running) {
     }
 }
 
+/// Every message on the robot's keys, typed (`echo_bus::observer`): recorded, counted, and
+/// handed to the live scores and the mission's account.
 async fn subscribe_all(
     bus: &Bus,
     observed: Arc<Mutex<Observed>>,
 ) -> Result<zenoh::pubsub::Subscriber<()>> {
-    let key = keys::robot_all(bus.robot());
-    let prefix = format!("{}/{}/", keys::ROOT, bus.robot());
-    bus.session()
-        .declare_subscriber(key.as_str())
-        .callback(move |sample| {
-            let now = now_ns();
-            let bytes = sample.payload().to_bytes();
-            let key = sample.key_expr().as_str();
-            let short = key.strip_prefix(&prefix).unwrap_or(key).to_string();
-            let v: Option<serde_json::Value> = serde_json::from_slice(&bytes).ok();
-            let mut o = observed.lock().unwrap_or_else(|e| e.into_inner());
-            if let Some(r) = o.recorder.as_mut() {
-                if r.write(key, now, &bytes).is_err() {
-                    o.recording_errors += 1;
+    observer::observe(bus, &keys::robot_all(bus.robot()), move |ob| {
+        let mut o = observed.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(r) = o.recorder.as_mut() {
+            if r.write(&ob.key, ob.received_ns, &ob.payload).is_err() {
+                o.recording_errors += 1;
+            }
+        }
+        match ob.seen() {
+            Some(Seen::ServiceStatus(st)) => {
+                o.status.insert(st.service.clone(), st.clone());
+            }
+            Some(Seen::Safety(st)) => {
+                let state = serde_json::to_value(st.state)
+                    .ok()
+                    .and_then(|v| v.as_str().map(str::to_string))
+                    .unwrap_or_default();
+                o.safety = Some(if st.reasons.is_empty() {
+                    state
+                } else {
+                    format!("{state} ({})", st.reasons.join("; "))
+                });
+                if let Some(m) = o.mission.as_mut() {
+                    m.on_safety(st);
                 }
             }
-            if short.starts_with("status/") {
-                if let Some(v) = &v {
-                    o.status
-                        .insert(short.trim_start_matches("status/").to_string(), v.clone());
+            Some(Seen::Forecast(f)) => o.forecasts.on_forecast(f),
+            Some(Seen::RobotState(js)) => {
+                if let Some(m) = o.mission.as_mut() {
+                    m.on_state(js);
                 }
             }
-            if short == "safety/status" {
-                if let Some(st) = v
-                    .as_ref()
-                    .and_then(|v| v.get("state"))
-                    .and_then(|s| s.as_str())
-                {
-                    let reasons: Vec<String> = v
-                        .as_ref()
-                        .and_then(|v| v.get("reasons"))
-                        .and_then(|r| serde_json::from_value(r.clone()).ok())
-                        .unwrap_or_default();
-                    o.safety = Some(if reasons.is_empty() {
-                        st.to_string()
-                    } else {
-                        format!("{st} ({})", reasons.join("; "))
-                    });
+            Some(Seen::Humans(h)) => {
+                if let Some(m) = o.mission.as_mut() {
+                    m.on_humans(h);
                 }
-            }
-            if short == "forecast" {
-                if let Some(v) = &v {
-                    o.forecasts.on_forecast(v);
-                }
-            }
-            if let (Some(m), Some(v)) = (o.mission.as_mut(), &v) {
-                match short.as_str() {
-                    "robot/state" => m.on_state(v),
-                    "safety/status" => m.on_safety(v),
-                    "humans" => m.on_humans(v),
-                    _ => {}
-                }
-            }
-            if short == "humans" {
-                if let Some(v) = &v {
-                    o.forecasts.on_humans(v);
-                }
+                o.forecasts.on_humans(h);
                 o.human_frames += 1;
-                if v.as_ref()
-                    .and_then(|v| v.get("partner_id"))
-                    .is_some_and(|p| !p.is_null())
-                {
+                if h.partner_id.is_some() {
                     o.partner_frames += 1;
                 }
             }
-            let ks = o.keys.entry(short).or_default();
-            ks.count += 1;
-            ks.bytes += bytes.len() as u64;
-            if let Some(stamp) = v
-                .as_ref()
-                .and_then(|v| v.pointer("/header/stamp_ns"))
-                .and_then(|s| s.as_u64())
-            {
-                if ks.ages_ms.len() < 100_000 {
-                    ks.ages_ms.push((now as f64 - stamp as f64) / 1e6);
-                }
+            _ => {}
+        }
+        let age = ob.age_ms();
+        let ks = o.keys.entry(ob.short_key().to_string()).or_default();
+        ks.count += 1;
+        ks.bytes += ob.payload.len() as u64;
+        if let Some(age) = age {
+            if ks.ages_ms.len() < 100_000 {
+                ks.ages_ms.push(age);
             }
-        })
-        .await
-        .map_err(|e| anyhow!("subscribing to {key}: {e}"))
+        }
+    })
+    .await
 }
 
 fn status_line(t: f64, o: &Observed) -> String {
@@ -796,9 +657,8 @@ fn status_line(t: f64, o: &Observed) -> String {
     let latency = o
         .status
         .get("perception-bridge")
-        .and_then(|s| s.pointer("/latency/median_ms"))
-        .and_then(|v| v.as_f64())
-        .map(|m| format!(" bridge {m:.2} ms"))
+        .and_then(|s| s.latency.as_ref())
+        .map(|l| format!(" bridge {:.2} ms", l.median_ms))
         .unwrap_or_default();
     let safety = o
         .safety
@@ -828,14 +688,10 @@ fn status_line(t: f64, o: &Observed) -> String {
 }
 
 fn totals(o: &Observed) -> (u64, u64) {
-    let sum = |field: &str| -> u64 {
-        o.status
-            .values()
-            .filter_map(|s| s.get(field).and_then(|m| m.as_object()))
-            .flat_map(|m| m.values().filter_map(|v| v.as_u64()))
-            .sum()
+    let sum = |m: fn(&ServiceStatus) -> &BTreeMap<String, u64>| -> u64 {
+        o.status.values().flat_map(|s| m(s).values()).sum()
     };
-    (sum("rejected"), sum("dropped"))
+    (sum(|s| &s.rejected), sum(|s| &s.dropped))
 }
 
 fn summary(o: &Observed, elapsed: f64) -> serde_json::Value {
@@ -858,10 +714,10 @@ fn summary(o: &Observed, elapsed: f64) -> serde_json::Value {
         services.insert(
             name.clone(),
             serde_json::json!({
-                "rejected": s.get("rejected"),
-                "dropped": s.get("dropped"),
-                "latency": s.get("latency"),
-                "last_error": s.get("last_error"),
+                "rejected": s.rejected,
+                "dropped": s.dropped,
+                "latency": s.latency,
+                "last_error": s.last_error,
             }),
         );
     }
