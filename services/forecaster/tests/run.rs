@@ -126,12 +126,17 @@ async fn paced_with_a_forged_frame(forged: Input, frames: u64) -> (Instant, Coll
     let paced = futures::stream::iter(inputs).then(move |input| {
         let mark = mark.clone();
         async move {
+            let mut input = input;
             let forged =
                 matches!(&input, Input::Skeletons(_, m) if m.msg.header.source == "forger");
             if forged {
                 *mark.lock().unwrap() = Some(Instant::now());
             } else {
                 tokio::time::sleep(Duration::from_nanos(66_666_667)).await;
+            }
+            // Received now (the loop's monotonic clock is each input's receive instant).
+            if let Input::Skeletons(_, m) = &mut input {
+                m.at = Instant::now();
             }
             input
         }
