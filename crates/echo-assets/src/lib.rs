@@ -72,6 +72,20 @@ pub fn model_dirs() -> Vec<PathBuf> {
     v
 }
 
+/// The deployment directory (profiles, Zenoh configs): `given` when it exists, else the first
+/// `deploy` found by the same search as the models (`share/echo/deploy` when installed); `given`
+/// itself when there is none (the caller's error names it).
+pub fn deploy_dir(given: &Path) -> PathBuf {
+    if given.is_dir() || given.is_absolute() {
+        return given.to_path_buf();
+    }
+    roots()
+        .into_iter()
+        .map(|(root, _)| root.join("deploy"))
+        .find(|d| d.join("profiles").is_dir())
+        .unwrap_or_else(|| given.to_path_buf())
+}
+
 /// Whether a checkpoint stem exists (`<stem>.json`, `<stem>.safetensors`, or the path itself).
 fn exists(stem: &Path) -> bool {
     stem.exists()
@@ -140,6 +154,12 @@ mod tests {
         assert!(e.to_string().contains("ECHO_MODELS"), "{e}");
         assert!(e.searched.contains(&mine.path().display().to_string()));
         std::env::remove_var("ECHO_MODELS");
+    }
+
+    #[test]
+    fn the_deployment_directory_is_found_from_anywhere() {
+        let d = deploy_dir(Path::new("no/such/deploy"));
+        assert!(d.join("profiles/demo.json").is_file(), "{}", d.display());
     }
 
     #[test]

@@ -9,6 +9,8 @@
 //!       supervise (one; restarted after exit: back-off 1 s doubling to 30 s, reset when healthy)
 //! ```
 
+pub mod profile;
+
 use std::ffi::OsString;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};

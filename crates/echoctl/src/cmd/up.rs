@@ -6,9 +6,10 @@
 //! Networking: as Zenoh clients of the router given with `--mode client --connect …` (robot +
 //! edge and fleet), or, in peer mode, a full mesh on loopback ports (single host).
 
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, Result};
 use echo_bus::config::free_ports;
 use echo_bus::{shutdown, BusArgs};
+use echo_launch::profile::{expand, Profile, ServiceSpec, Vars};
 use echo_launch::{supervise, Logs, ProcessSpec, RestartPolicy};
 use std::path::{Path, PathBuf};
 
@@ -38,72 +39,15 @@ pub struct Args {
     pub dry_run: bool,
 }
 
-/// One service of a profile (an unknown key, such as a misspelt `"arg"`, is an error).
-#[derive(Debug, Clone, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ServiceSpec {
-    /// Name (log prefix, default TLS identity).
-    pub name: String,
-    /// Binary next to echoctl (a service, or echoctl itself with a verb in `args`).
-    pub program: String,
-    /// Arguments; `{models}`, `{deploy}`, `{serve}`, `{rank}`, `{robot}` are substituted, and a
-    /// flag whose value comes out empty is left out.
-    #[serde(default)]
-    pub args: Vec<String>,
-    /// TLS identity (certificate common name) when it is not the name.
-    #[serde(default)]
-    pub identity: Option<String>,
-}
-
-/// A placement profile.
-#[derive(Debug, Clone, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Profile {
-    /// What it is for.
-    pub description: String,
-    /// What runs.
-    pub services: Vec<ServiceSpec>,
-}
-
-impl Profile {
-    /// Load `name` (a file path, or a name under `<deploy>/profiles/`).
-    pub fn load(name: &str, deploy: &Path) -> Result<Profile> {
-        let p = if name.ends_with(".json") || name.contains('/') {
-            PathBuf::from(name)
-        } else {
-            deploy.join("profiles").join(format!("{name}.json"))
-        };
-        let text = std::fs::read(&p).with_context(|| format!("reading profile {}", p.display()))?;
-        let profile: Profile =
-            serde_json::from_slice(&text).with_context(|| format!("parsing {}", p.display()))?;
-        anyhow::ensure!(!profile.services.is_empty(), "{}: no services", p.display());
-        Ok(profile)
-    }
-}
-
-/// The command line of `spec` with placeholders filled.
-pub fn expand(spec: &ServiceSpec, args: &Args) -> Vec<String> {
-    let serve = args.serve.join(",");
-    let fill = |a: &str| {
-        a.replace("{models}", &args.models.display().to_string())
-            .replace("{deploy}", &args.deploy_dir.display().to_string())
-            .replace("{serve}", &serve)
-            .replace("{rank}", &args.rank.to_string())
-            .replace("{robot}", &args.bus.robot)
-    };
-    let mut out: Vec<String> = vec![];
-    for a in &spec.args {
-        let v = fill(a);
-        if v.is_empty() {
-            // A flag without a value: drop the flag too.
-            if out.last().is_some_and(|f| f.starts_with("--")) {
-                out.pop();
-            }
-            continue;
-        }
-        out.push(v);
-    }
-    out
+/// The values `echoctl up` fills into a profile's placeholders: `{models}`, `{deploy}`,
+/// `{serve}` (comma-separated), `{rank}`, `{robot}`.
+pub fn vars(args: &Args) -> Vars {
+    Vars::new()
+        .set("models", args.models.display().to_string())
+        .set("deploy", args.deploy_dir.display().to_string())
+        .set("serve", args.serve.join(","))
+        .set("rank", args.rank.to_string())
+        .set("robot", args.bus.robot.clone())
 }
 
 /// Network flags for each of `n` services.
@@ -130,8 +74,8 @@ fn networks(bus: &BusArgs, n: usize) -> Vec<BusArgs> {
 }
 
 /// The full argument list of service `spec` on network `net`.
-pub fn command_line(spec: &ServiceSpec, args: &Args, net: &BusArgs) -> Vec<String> {
-    let mut v = expand(spec, args);
+pub fn command_line(spec: &ServiceSpec, args: &Args, net: &BusArgs) -> Result<Vec<String>> {
+    let mut v = expand(spec, &vars(args))?;
     let mut net = net.clone();
     net.tls_name = Some(spec.identity.clone().unwrap_or_else(|| spec.name.clone()));
     if spec.program == "echoctl" && v.first().is_some_and(|x| x == "router") {
@@ -149,7 +93,7 @@ pub fn command_line(spec: &ServiceSpec, args: &Args, net: &BusArgs) -> Vec<Strin
         net.tls_name = None;
     }
     v.extend(net.to_cli());
-    v
+    Ok(v)
 }
 
 /// Start the profile and supervise it until SIGINT/SIGTERM.
@@ -165,13 +109,13 @@ pub async fn run(args: Args) -> Result<()> {
         .iter()
         .zip(&nets)
         .map(|(s, n)| {
-            (
+            Ok((
                 s.clone(),
                 exe_dir.join(&s.program),
-                command_line(s, &args, n),
-            )
+                command_line(s, &args, n)?,
+            ))
         })
-        .collect();
+        .collect::<Result<_>>()?;
     eprintln!("profile {}: {}", args.profile, profile.description);
     for (s, p, a) in &lines {
         eprintln!("  {:<18} {} {}", s.name, p.display(), a.join(" "));
@@ -226,42 +170,18 @@ mod tests {
     }
 
     #[test]
-    fn every_shipped_profile_loads() {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../deploy");
-        for e in std::fs::read_dir(dir.join("profiles")).unwrap() {
-            let p = e.unwrap().path();
-            let prof = Profile::load(p.to_str().unwrap(), &dir).unwrap();
-            assert!(!prof.description.is_empty(), "{}", p.display());
-        }
-    }
-
-    #[test]
-    fn a_misspelt_key_is_an_error_naming_it() {
-        let scratch = tempfile::tempdir().unwrap();
-        let p = scratch.path().join("typo.json");
-        std::fs::write(
-            &p,
-            r#"{"description": "d", "services": [{"name": "safety", "program": "safety", "arg": ["--x"]}]}"#,
-        )
-        .unwrap();
-        let e = format!(
-            "{:#}",
-            Profile::load(p.to_str().unwrap(), Path::new(".")).unwrap_err()
-        );
-        assert!(e.contains("unknown field `arg`"), "{e}");
-    }
-
-    #[test]
     fn placeholders_fill_and_empty_flags_drop() {
         let prof = Profile::load("edge", Path::new("../../deploy")).unwrap();
         let fc = &prof.services[0];
         let a = args(&["--rank", "1"]);
-        let line = expand(fc, &a);
+        let line = expand(fc, &vars(&a)).unwrap();
         assert!(line.contains(&"models/hri".to_string()));
         assert!(!line.contains(&"--robots".to_string()), "{line:?}");
         assert_eq!(line.last().unwrap(), "1");
         let a = args(&["--serve", "r2,r3"]);
-        assert!(expand(fc, &a).contains(&"r2,r3".to_string()));
+        assert!(expand(fc, &vars(&a))
+            .unwrap()
+            .contains(&"r2,r3".to_string()));
     }
 
     #[test]
@@ -276,7 +196,7 @@ mod tests {
             "/etc/echo/tls",
         ]);
         let nets = networks(&a.bus, prof.services.len());
-        let line = command_line(&prof.services[0], &a, &nets[0]);
+        let line = command_line(&prof.services[0], &a, &nets[0]).unwrap();
         assert!(line.contains(&"tls/10.0.0.1:7447".to_string()));
         // mock-robot speaks as the robot interface.
         let i = line.iter().position(|x| x == "--tls-name").unwrap();
@@ -285,7 +205,7 @@ mod tests {
         let router = Profile::load("router-secure", Path::new("../../deploy")).unwrap();
         let a = args(&["--tls-dir", "/etc/echo/tls"]);
         let nets = networks(&a.bus, 1);
-        let line = command_line(&router.services[0], &a, &nets[0]);
+        let line = command_line(&router.services[0], &a, &nets[0]).unwrap();
         assert!(!line.iter().any(|x| x.contains("127.0.0.1")), "{line:?}");
         assert!(line.contains(&"router".to_string()));
         let a = args(&[]);

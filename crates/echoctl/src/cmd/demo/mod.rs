@@ -27,6 +27,7 @@ use echo_bus::stats::latency_summary;
 use echo_bus::topics;
 use echo_bus::{keys, Bus, BusArgs};
 use echo_eval::live::ForecastScore;
+use echo_launch::profile::{expand, Profile, ServiceSpec, Vars};
 use echo_launch::{Group, Logs, ProcessSpec, Stopped};
 use echo_msgs::{now_ns, ControlMode, Header, Interaction, InteractionIntent, ServiceStatus};
 
@@ -84,26 +85,13 @@ pub struct Args {
     /// Write the summary as JSON to this file too.
     #[arg(long)]
     pub summary_json: Option<PathBuf>,
+    /// The placement profile that lists the demo's services and their flags.
+    #[arg(long, default_value = "demo")]
+    pub profile: String,
+    /// The deployment directory holding the profiles.
+    #[arg(long, env = "ECHO_DEPLOY_DIR", default_value = "deploy")]
+    pub deploy_dir: PathBuf,
 }
-
-/// How a service is started.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Launch {
-    /// `echoctl <verb>`.
-    Echoctl(&'static str),
-    /// A service binary of that name.
-    Binary,
-}
-
-/// Pipeline order: robot first (everyone needs its state), perception last (it drives the rest).
-const SERVICES: &[(&str, Launch)] = &[
-    ("mock-robot", Launch::Echoctl("mock-robot")),
-    ("perception-bridge", Launch::Binary),
-    ("forecaster", Launch::Binary),
-    ("retargeter", Launch::Binary),
-    ("safety", Launch::Binary),
-    ("mock-perception", Launch::Echoctl("mock-perception")),
-];
 
 /// Services that exist as tasks in this binary (for `--single-process`).
 const IN_PROCESS: &[&str] = &[
@@ -114,6 +102,12 @@ const IN_PROCESS: &[&str] = &[
     "safety",
     "mock-perception",
 ];
+
+/// A profile's service, ready to start: its spec and its arguments with the scenario's values.
+struct Planned {
+    spec: ServiceSpec,
+    args: Vec<String>,
+}
 
 #[derive(Default)]
 struct KeyStats {
@@ -141,11 +135,7 @@ struct Observed {
 /// process with `--single-process`.
 struct Running {
     processes: Group,
-    tasks: Vec<(
-        &'static str,
-        ShutdownTrigger,
-        tokio::task::JoinHandle<Result<()>>,
-    )>,
+    tasks: Vec<(String, ShutdownTrigger, tokio::task::JoinHandle<Result<()>>)>,
 }
 
 /// Run the demo.
@@ -154,20 +144,26 @@ pub async fn run(args: Args) -> Result<()> {
         .parent()
         .map(Path::to_path_buf)
         .ok_or_else(|| anyhow!("cannot locate the echoctl binary's directory"))?;
-    let available: Vec<(&str, Launch)> = SERVICES
-        .iter()
-        .copied()
-        .filter(|(name, launch)| match launch {
-            Launch::Echoctl(_) => true,
-            Launch::Binary if args.single_process => IN_PROCESS.contains(name),
-            Launch::Binary => exe_dir.join(name).is_file(),
-        })
-        .collect();
-    let absent: Vec<&str> = SERVICES
-        .iter()
-        .filter(|(n, _)| !available.iter().any(|(a, _)| a == n))
-        .map(|(n, _)| *n)
-        .collect();
+    let setup = Setup::from_args(&args)?;
+    let deploy = echo_assets::deploy_dir(&args.deploy_dir);
+    let profile = Profile::load(&args.profile, &deploy)?;
+    let vars = setup.vars(&args);
+    let mut available = vec![];
+    let mut absent = vec![];
+    for spec in &profile.services {
+        let installed = match spec.program.as_str() {
+            "echoctl" => true,
+            _ if args.single_process => IN_PROCESS.contains(&spec.name.as_str()),
+            program => exe_dir.join(program).is_file(),
+        };
+        match installed {
+            true => available.push(Planned {
+                args: expand(spec, &vars)?,
+                spec: spec.clone(),
+            }),
+            false => absent.push(spec.name.as_str()),
+        }
+    }
     let log_dir = match &args.log_dir {
         Some(d) => d.clone(),
         None => std::env::temp_dir().join(format!("echo-demo-{}", std::process::id())),
@@ -186,7 +182,7 @@ pub async fn run(args: Args) -> Result<()> {
         "echo demo: robot '{robot}', {} over Zenoh on loopback ({})",
         available
             .iter()
-            .map(|(n, _)| *n)
+            .map(|p| p.spec.name.as_str())
             .collect::<Vec<_>>()
             .join(", "),
         if args.single_process {
@@ -202,8 +198,6 @@ pub async fn run(args: Args) -> Result<()> {
         );
     }
     println!("logs: {}", log_dir.display());
-
-    let setup = Setup::from_args(&args)?;
     if let Some(m) = &setup.mission {
         println!(
             "scenario '{}' ({:.0} s): {}",
@@ -220,14 +214,16 @@ pub async fn run(args: Args) -> Result<()> {
         processes: Group::new(Duration::from_secs(5)),
         tasks: vec![],
     };
-    for (i, (name, launch)) in available.iter().enumerate() {
+    for (i, planned) in available.iter().enumerate() {
         let net = &mesh[i + 1];
-        let flags = service_flags(name, &args, &setup);
+        let name = planned.spec.name.as_str();
         if args.single_process {
-            let (trigger, handle) = start_task(name, net, flags)?;
-            running.tasks.push((name, trigger, handle));
+            // An `echoctl <verb>` service's arguments start with its verb.
+            let skip = usize::from(planned.spec.program == "echoctl");
+            let (trigger, handle) = start_task(name, net, planned.args[skip..].to_vec())?;
+            running.tasks.push((name.to_string(), trigger, handle));
         } else {
-            let spec = process_spec(&exe_dir, name, *launch, net, flags);
+            let spec = process_spec(&exe_dir, planned, net);
             running
                 .processes
                 .start(&spec, &Logs::in_dir(&log_dir, name))?;
@@ -250,7 +246,7 @@ pub async fn run(args: Args) -> Result<()> {
         None
     };
 
-    let names: Vec<&str> = available.iter().map(|(n, _)| *n).collect();
+    let names: Vec<&str> = available.iter().map(|p| p.spec.name.as_str()).collect();
     let missing = watch
         .wait_for(robot.as_str(), &names, Duration::from_secs(20))
         .await;
@@ -425,21 +421,19 @@ fn pictures(recording: &Path, dir: &Path) {
     }
 }
 
-/// The command line of one service process.
-fn process_spec(
-    exe_dir: &Path,
-    name: &str,
-    launch: Launch,
-    net: &BusArgs,
-    flags: Vec<String>,
-) -> ProcessSpec {
-    let (program, mut argv) = match launch {
-        Launch::Echoctl(verb) => (exe_dir.join("echoctl"), vec![verb.to_string()]),
-        Launch::Binary => (exe_dir.join(name), vec![]),
-    };
+/// The command line of one service process: its program next to echoctl, its arguments (the
+/// verb first for `echoctl <verb>`), then the network flags.
+fn process_spec(exe_dir: &Path, planned: &Planned, net: &BusArgs) -> ProcessSpec {
+    let mut argv = planned.args.clone();
+    let verb = usize::from(planned.spec.program == "echoctl").min(argv.len());
+    let rest = argv.split_off(verb);
     argv.extend(net.to_cli());
-    argv.extend(flags);
-    ProcessSpec::new(name, program, argv)
+    argv.extend(rest);
+    ProcessSpec::new(
+        &planned.spec.name,
+        exe_dir.join(&planned.spec.program),
+        argv,
+    )
 }
 
 /// What the demo plays, decided once before the services start.
@@ -480,35 +474,44 @@ impl Setup {
             t0_ns,
         })
     }
-}
 
-fn service_flags(name: &str, args: &Args, setup: &Setup) -> Vec<String> {
-    match name {
-        "mock-perception" => {
-            let mut v = vec!["--format".to_string(), args.format.clone()];
-            if args.bystander {
-                v.push("--bystander".into());
+    /// The values of the demo profile's placeholders for this run.
+    fn vars(&self, args: &Args) -> Vars {
+        let human_robot = self.mission.is_some();
+        let scenario = match (&args.capture, human_robot) {
+            (_, false) => vec![],
+            (Some(files), true) => {
+                let mut v = vec!["--capture".to_string()];
+                v.extend(files.iter().map(|f| f.display().to_string()));
+                v.extend(["--capture-prompt".into(), args.capture_prompt.clone()]);
+                v
             }
-            if setup.mission.is_some() {
-                match &args.capture {
-                    Some(files) => {
-                        v.push("--capture".into());
-                        v.extend(files.iter().map(|f| f.display().to_string()));
-                        v.extend(["--capture-prompt".into(), args.capture_prompt.clone()]);
-                    }
-                    None => v.extend(["--scenario".into(), args.scenario.clone()]),
-                }
-                v.extend(["--t0-ns".into(), setup.t0_ns.to_string()]);
-            }
-            v
-        }
-        "forecaster" if setup.mission.is_some() => {
-            vec!["--model".into(), args.hri.display().to_string()]
-        }
-        "mock-robot" => vec!["--head-sweep".into(), "0.15".into()],
-        // The robot interface is required: without it the safety service holds the robot.
-        "safety" => vec!["--require".into(), "mock-robot".into()],
-        _ => vec![],
+            (None, true) => vec!["--scenario".into(), args.scenario.clone()],
+        };
+        let t0 = match human_robot {
+            true => vec!["--t0-ns".to_string(), self.t0_ns.to_string()],
+            false => vec![],
+        };
+        Vars::new()
+            .set("models", "models")
+            // The HRI model plans for the robot; watch and imitation use the service's default.
+            .set_all(
+                "forecaster_model",
+                human_robot
+                    .then(|| args.hri.display().to_string())
+                    .into_iter()
+                    .collect(),
+            )
+            .set("format", args.format.clone())
+            .set_all(
+                "bystander",
+                args.bystander
+                    .then(|| "--bystander".to_string())
+                    .into_iter()
+                    .collect(),
+            )
+            .set_all("scenario", scenario)
+            .set_all("t0", t0)
     }
 }
 
