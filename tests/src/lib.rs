@@ -242,6 +242,19 @@ pub fn spawn_hri_pipeline(h: &mut Harness) -> Result<()> {
     h.spawn("safety", "safety", &["--require", "mock-robot"])
 }
 
+/// The human–robot pipeline started ([`spawn_hri_pipeline`]) on a fresh mesh for `robot`, the
+/// test's own bus session, its taps, and every service alive: what a human–robot system test
+/// starts from (the partner is started by the test).
+pub async fn start_hri_pipeline(robot: &str) -> Result<(Harness, Bus, HriTaps)> {
+    let mut h = Harness::new(robot, 5)?;
+    spawn_hri_pipeline(&mut h)?;
+    let bus = h.bus("system-test").await?;
+    let taps = HriTaps::open(&bus).await?;
+    h.wait_alive(&bus, &HRI_SERVICES, Duration::from_secs(60))
+        .await?;
+    Ok((h, bus, taps))
+}
+
 /// Announce a mission segment's interaction to the robot (text, type, forecast mode).
 pub async fn announce(
     prompt: &echo_bus::Publisher<echo_msgs::InteractionIntent>,

@@ -17,9 +17,7 @@ use echo_robot::collision::RobotBody;
 use echo_robot::RobotModel;
 use echo_safety::config::SeparationConfig;
 use echo_sim::mission::Mission;
-use echo_system_tests::{
-    announce, check_command_limits, spawn_hri_pipeline, Harness, HriTaps, HRI_SERVICES,
-};
+use echo_system_tests::{announce, check_command_limits, start_hri_pipeline, HriTaps};
 use nalgebra::{Isometry3, Vector3};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -32,20 +30,19 @@ async fn the_robot_shakes_the_offered_hand_within_its_limits_and_clearances() ->
     assert_eq!(format!("{:?}", seg.interaction), "Handshake");
     let clearances = SeparationConfig::default();
 
-    let mut h = Harness::new("sys-handshake", 5)?;
-    spawn_hri_pipeline(&mut h)?;
-    let bus = h.bus("system-test").await?;
+    let (
+        mut h,
+        bus,
+        HriTaps {
+            prompt,
+            states,
+            humans,
+            commands,
+            safety,
+            forecasts: _,
+        },
+    ) = start_hri_pipeline("sys-handshake").await?;
     let robot = bus.robot().clone();
-    let HriTaps {
-        prompt,
-        states,
-        humans,
-        commands,
-        safety,
-        forecasts: _,
-    } = HriTaps::open(&bus).await?;
-    h.wait_alive(&bus, &HRI_SERVICES, Duration::from_secs(60))
-        .await?;
     // The partner starts once everything listens, and plays the scenario once.
     let t0 = now_ns() + 1_000_000_000;
     h.spawn(

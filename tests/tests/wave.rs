@@ -13,9 +13,7 @@ use echo_eval::behaviour::wave;
 use echo_msgs::{now_ns, SafetyState};
 use echo_robot::{RobotModel, GRASPING_FRAMES, SHOULDER_LINKS};
 use echo_sim::mission::Mission;
-use echo_system_tests::{
-    announce, check_command_limits, spawn_hri_pipeline, Harness, HriTaps, HRI_SERVICES,
-};
+use echo_system_tests::{announce, check_command_limits, start_hri_pipeline, HriTaps};
 
 /// Time (s, the mission's clock), gripper and shoulder positions (base frame).
 type HandSample = (f64, [f64; 3], [f64; 3]);
@@ -27,21 +25,20 @@ async fn the_robot_waves_back_recognisably_within_its_limits() -> anyhow::Result
     let seg = mission.segments[0].clone();
     assert_eq!(format!("{:?}", seg.interaction), "Wave");
 
-    let mut h = Harness::new("sys-wave", 5)?;
-    spawn_hri_pipeline(&mut h)?;
-    let bus = h.bus("system-test").await?;
+    let (
+        mut h,
+        bus,
+        HriTaps {
+            prompt,
+            states,
+            humans,
+            commands,
+            safety,
+            forecasts,
+        },
+    ) = start_hri_pipeline("sys-wave").await?;
     let robot = bus.robot().clone();
-    let HriTaps {
-        prompt,
-        states,
-        humans,
-        commands,
-        safety,
-        forecasts,
-    } = HriTaps::open(&bus).await?;
     let debug = std::env::var_os("ECHO_WAVE_DEBUG").is_some();
-    h.wait_alive(&bus, &HRI_SERVICES, Duration::from_secs(60))
-        .await?;
     // As in the demo: the partner stands for a lead-in (the forecaster's history fills, the
     // interaction is announced), then plays the scenario once.
     let lead_in_s = 4.0;

@@ -8,6 +8,8 @@ use echo_msgs::{
     decode, DecodeError, EStop, Forecast, Header, HumanSkeletons, InteractionIntent, JointState,
     KeypointFrame, Message, RobotCommand, RobotPlan, SafetyStatus, ServiceStatus,
 };
+use std::collections::HashMap;
+
 use zenoh::key_expr::KeyExpr;
 
 use crate::keys::RobotId;
@@ -139,7 +141,16 @@ pub struct Observation {
 impl Observation {
     /// `key`, `payload` received at `received_ns`, classified and decoded.
     pub fn new(key: &str, payload: Vec<u8>, received_ns: u64) -> Observation {
-        let edge = classify(key);
+        Self::classified(key, classify(key), payload, received_ns)
+    }
+
+    /// As [`Observation::new`], with the key's classification already known.
+    fn classified(
+        key: &str,
+        edge: Option<(RobotId, Edge)>,
+        payload: Vec<u8>,
+        received_ns: u64,
+    ) -> Observation {
         let message = edge.as_ref().map(|(_, e)| decode_as(*e, &payload));
         Observation {
             key: key.to_string(),
@@ -171,18 +182,32 @@ impl Observation {
 }
 
 /// Call `f` with every sample under `key_expr` (e.g. `keys::robot_all(robot)`), classified and
-/// decoded, until the returned subscriber is dropped.
+/// decoded, until the returned subscriber is dropped. Each distinct key is classified once.
 pub async fn observe(
     bus: &Bus,
     key_expr: &str,
     f: impl Fn(Observation) + Send + Sync + 'static,
 ) -> anyhow::Result<zenoh::pubsub::Subscriber<()>> {
+    let known: std::sync::Mutex<HashMap<String, Option<(RobotId, Edge)>>> = Default::default();
     bus.session()
         .declare_subscriber(key_expr.to_string())
         .callback(move |sample| {
             let now = echo_msgs::now_ns();
-            f(Observation::new(
-                sample.key_expr().as_str(),
+            let key = sample.key_expr().as_str();
+            let edge = {
+                let mut known = known.lock().unwrap_or_else(|e| e.into_inner());
+                if known.len() > 4096 {
+                    // Keys from a flood of made-up names: stop remembering them.
+                    known.clear();
+                }
+                known
+                    .entry(key.to_string())
+                    .or_insert_with(|| classify(key))
+                    .clone()
+            };
+            f(Observation::classified(
+                key,
+                edge,
                 sample.payload().to_bytes().into_owned(),
                 now,
             ))

@@ -294,6 +294,12 @@ impl Group {
         Some(self.procs.remove(pos))
     }
 
+    /// The label of the first member (in start order) that is no longer running.
+    pub fn first_ended(&mut self) -> Option<&str> {
+        let i = self.procs.iter_mut().position(|p| !p.is_running())?;
+        Some(self.procs[i].label.as_str())
+    }
+
     /// Members' labels in start order.
     pub fn labels(&self) -> Vec<&str> {
         self.procs.iter().map(|p| p.label.as_str()).collect()
@@ -478,6 +484,7 @@ mod tests {
         // Let the shells install their traps.
         std::thread::sleep(Duration::from_millis(300));
         let t = Instant::now();
+        assert_eq!(g.first_ended(), None);
         let stopped = g.stop_all();
         // One shared deadline, not one per member.
         assert!(

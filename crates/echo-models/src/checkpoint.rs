@@ -34,7 +34,12 @@ impl CheckpointMeta {
     /// Read `<stem>.json` (`stem` resolved by [`echo_assets::resolve_model`]); the file is
     /// named in any error.
     pub fn load(stem: &Path) -> anyhow::Result<CheckpointMeta> {
-        let jp = echo_assets::resolve_model(stem)?.with_extension("json");
+        Self::read(&echo_assets::resolve_model(stem)?)
+    }
+
+    /// Read `<stem>.json` of an already resolved stem.
+    fn read(stem: &Path) -> anyhow::Result<CheckpointMeta> {
+        let jp = stem.with_extension("json");
         serde_json::from_slice(
             &std::fs::read(&jp).map_err(|e| anyhow::anyhow!("{}: {e}", jp.display()))?,
         )
@@ -73,7 +78,7 @@ impl Checkpoint {
     /// the working directory).
     pub fn load(stem: &Path, dev: &Device) -> anyhow::Result<Checkpoint> {
         let stem = &echo_assets::resolve_model(stem)?;
-        let meta = CheckpointMeta::load(stem)?;
+        let meta = CheckpointMeta::read(stem)?;
         let wp = stem.with_extension("safetensors");
         let bytes = std::fs::read(&wp).map_err(|e| anyhow::anyhow!("{}: {e}", wp.display()))?;
         let vb = VarBuilder::from_buffered_safetensors(bytes, DType::F32, dev)?;

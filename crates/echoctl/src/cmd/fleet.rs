@@ -318,18 +318,11 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
         }
     }
     measuring.store(false, std::sync::atomic::Ordering::Relaxed);
-    for label in children
-        .labels()
-        .iter()
-        .map(|l| l.to_string())
-        .collect::<Vec<_>>()
-    {
-        if children.get_mut(&label).is_some_and(|p| !p.is_running()) {
-            anyhow::bail!(
-                "{label} exited during the run (log in {})",
-                opts.log_dir.display()
-            );
-        }
+    if let Some(label) = children.first_ended() {
+        anyhow::bail!(
+            "{label} exited during the run (log in {})",
+            opts.log_dir.display()
+        );
     }
     drop(subs);
     drop(children);
