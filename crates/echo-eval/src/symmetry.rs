@@ -10,7 +10,6 @@
 //! ŷ = ¼ Σ_{g ∈ {id, M, S, M∘S}} g⁻¹( f( g(x) ) )     M: y → −y, left ↔ right   S: A ↔ B
 //! ```
 
-use echo_motion::skeleton::MIRROR;
 use nalgebra::Vector3;
 
 use crate::metrics::Frame;
@@ -18,14 +17,7 @@ use crate::window::{Predictor, Window};
 
 /// Mirror image across the x–z plane, left and right joints exchanged (its own inverse).
 pub fn mirror_frame(f: &Frame) -> Frame {
-    f.iter()
-        .map(|p| {
-            std::array::from_fn(|j| {
-                let s = p[MIRROR[j]];
-                Vector3::new(s.x, -s.y, s.z)
-            })
-        })
-        .collect()
+    f.iter().map(echo_motion::skeleton::mirror).collect()
 }
 
 /// The people's order reversed (its own inverse).

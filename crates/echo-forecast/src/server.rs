@@ -48,6 +48,35 @@ pub struct ServerConfig {
     /// accepted one (the sender's clock stepped back, or a frame stamped ahead of the stream got
     /// in), its history restarts from the next frame (counted in `resyncs`), ms.
     pub resync_after_ms: f64,
+    /// Human–human models: forecast the scene, its mirror image, the scene with the two
+    /// people's roles exchanged, and both, and publish the average of the four forecasts mapped
+    /// back ([`symmetries`]). The forecast then does not depend on which person is called A nor
+    /// on left and right, whatever the model learned; four copies share one forward pass.
+    /// Meant for prompts that name no role or side (the real-capture descriptions the shipped
+    /// forecaster is measured on, docs/RESULTS.md); robot-agent models ignore it (the robot has
+    /// no role to exchange).
+    pub symmetrize: bool,
+}
+
+/// A transform of one frame of a two-agent scene (each its own inverse).
+pub type Symmetry = fn(&[[Vector3<f64>; NUM_JOINTS]]) -> Vec<[Vector3<f64>; NUM_JOINTS]>;
+
+/// The symmetries of a two-person scene: identity, mirror image across the x–z plane (left and
+/// right exchanged), roles exchanged, and both.
+pub fn symmetries() -> [Symmetry; 4] {
+    fn identity(f: &[[Vector3<f64>; NUM_JOINTS]]) -> Vec<[Vector3<f64>; NUM_JOINTS]> {
+        f.to_vec()
+    }
+    fn mirror(f: &[[Vector3<f64>; NUM_JOINTS]]) -> Vec<[Vector3<f64>; NUM_JOINTS]> {
+        f.iter().map(echo_motion::skeleton::mirror).collect()
+    }
+    fn swap(f: &[[Vector3<f64>; NUM_JOINTS]]) -> Vec<[Vector3<f64>; NUM_JOINTS]> {
+        f.iter().rev().copied().collect()
+    }
+    fn both(f: &[[Vector3<f64>; NUM_JOINTS]]) -> Vec<[Vector3<f64>; NUM_JOINTS]> {
+        mirror(&swap(f))
+    }
+    [identity, mirror, swap, both]
 }
 
 impl Default for ServerConfig {
@@ -61,6 +90,7 @@ impl Default for ServerConfig {
             partner_range_m: 4.0,
             max_future_ms: DEFAULT_MAX_AHEAD_MS,
             resync_after_ms: DEFAULT_RESYNC_AFTER_MS,
+            symmetrize: false,
         }
     }
 }
@@ -415,6 +445,12 @@ impl ForecastServer {
         let cfg = self.backend.config().clone();
         let robot_agent = self.robot_agent();
         let [fa, fb] = cfg.agent_features;
+        // Copies of each scene in the batch: the four symmetries, or the scene alone.
+        let group = symmetries();
+        let copies = match self.cfg.symmetrize && !robot_agent {
+            true => group.len(),
+            false => 1,
+        };
         let mut robots = vec![];
         let mut canon = vec![];
         let mut obs = vec![];
@@ -429,22 +465,25 @@ impl ForecastServer {
             };
             let pairs: Vec<Vec<[Vector3<f64>; NUM_JOINTS]>> =
                 frames.iter().map(|p| p.pair.to_vec()).collect();
-            let (c, agents) = encode_frames(&pairs);
-            for f in &agents[0] {
-                obs.extend_from_slice(f);
-            }
-            if robot_agent {
-                // The robot in its own base frame (the skeletons' frame): base at the origin.
-                for f in &frames {
-                    obs.extend_from_slice(&encode_robot(&c, &f.robot, [0.0; 3]));
-                }
-            } else {
-                for f in &agents[1] {
+            for g in &group[..copies] {
+                let seen: Vec<_> = pairs.iter().map(|p| g(p)).collect();
+                let (c, agents) = encode_frames(&seen);
+                for f in &agents[0] {
                     obs.extend_from_slice(f);
                 }
+                if robot_agent {
+                    // The robot in its own base frame (the skeletons' frame): base at the origin.
+                    for f in &frames {
+                        obs.extend_from_slice(&encode_robot(&c, &f.robot, [0.0; 3]));
+                    }
+                } else {
+                    for f in &agents[1] {
+                        obs.extend_from_slice(f);
+                    }
+                }
+                canon.push(c);
             }
             measured.push(slot.robot_q);
-            canon.push(c);
             prompts.push(slot.prompt.clone());
             robots.push((
                 name.clone(),
@@ -457,10 +496,14 @@ impl ForecastServer {
         if robots.is_empty() {
             return vec![];
         }
-        let b = robots.len();
+        let b = robots.len() * copies;
         let text: Vec<f32> = match (&self.text, cfg.text_dim > 0) {
             (Some(e), true) => {
-                let refs: Vec<&str> = prompts.iter().map(|s| s.as_str()).collect();
+                // Every copy of a scene reads its prompt unchanged.
+                let refs: Vec<&str> = prompts
+                    .iter()
+                    .flat_map(|s| std::iter::repeat_n(s.as_str(), copies))
+                    .collect();
                 match e.embed(&refs) {
                     Ok(v) => v.concat(),
                     Err(err) => {
@@ -498,20 +541,39 @@ impl ForecastServer {
             }
         };
         let per = cfg.pred * (fa + fb);
-        let mut res = Vec::with_capacity(b);
+        let mut res = Vec::with_capacity(robots.len());
         let names = &self.robot_names;
-        for (i, ((robot, stamp, partner, interaction, arm), c)) in
-            robots.into_iter().zip(canon).enumerate()
-        {
-            let human: Vec<Vec<[f64; 3]>> = (0..cfg.pred)
-                .map(|k| {
-                    let o = i * per + k * FEATURES;
-                    decode(&c, &out[o..o + FEATURES])
-                        .iter()
-                        .map(|p| [p.x, p.y, p.z])
-                        .collect()
-                })
-                .collect();
+        for (i, (robot, stamp, partner, interaction, arm)) in robots.into_iter().enumerate() {
+            let c = &canon[i * copies];
+            let human: Vec<Vec<[f64; 3]>> = match copies {
+                1 => (0..cfg.pred)
+                    .map(|k| {
+                        let o = i * per + k * FEATURES;
+                        decode(c, &out[o..o + FEATURES])
+                            .iter()
+                            .map(|p| [p.x, p.y, p.z])
+                            .collect()
+                    })
+                    .collect(),
+                _ => (0..cfg.pred)
+                    .map(|k| {
+                        // Each copy's two forecast people, mapped back; person A's average.
+                        let mut sum = [Vector3::zeros(); NUM_JOINTS];
+                        for (gi, g) in group.iter().enumerate() {
+                            let n = i * copies + gi;
+                            let (oa, ob) = (n * per + k * fa, n * per + cfg.pred * fa + k * fb);
+                            let pair = [
+                                decode(&canon[n], &out[oa..oa + FEATURES]),
+                                decode(&canon[n], &out[ob..ob + FEATURES]),
+                            ];
+                            for (s, p) in sum.iter_mut().zip(g(&pair)[0]) {
+                                *s += p / copies as f64;
+                            }
+                        }
+                        sum.iter().map(|p| [p.x, p.y, p.z]).collect()
+                    })
+                    .collect(),
+            };
             let mut header = Header::new(&robot, "", "base_footprint");
             header.stamp_ns = stamp;
             // A robot-agent model forecasts the robot too: its plan starts at the measured
@@ -524,7 +586,7 @@ impl ForecastServer {
                 }];
                 for k in 0..cfg.pred {
                     let o = i * per + cfg.pred * fa + k * fb;
-                    let (q, _) = decode_robot(&c, &out[o..o + fb]);
+                    let (q, _) = decode_robot(c, &out[o..o + fb]);
                     points.push(PlanPoint {
                         t: (k + 1) as f64 / self.cfg.rate_hz,
                         positions: q,
@@ -649,6 +711,88 @@ mod tests {
             tracks,
             partner_id: partner,
         }
+    }
+
+    /// Zero velocity that also moves person A sideways (towards +y in A's own frame): a model
+    /// that is not mirror-symmetric.
+    struct Lopsided(echo_models::ZeroVelocityBackend);
+
+    impl Backend for Lopsided {
+        fn name(&self) -> String {
+            "lopsided".into()
+        }
+        fn config(&self) -> &ForecasterConfig {
+            self.0.config()
+        }
+        fn predict(&mut self, b: usize, obs: &[f32], text: &[f32]) -> anyhow::Result<Vec<f32>> {
+            let mut v = self.0.predict(b, obs, text)?;
+            let cfg = self.0.config();
+            let per = cfg.pred * (cfg.agent_features[0] + cfg.agent_features[1]);
+            for n in 0..b {
+                for k in 0..cfg.pred {
+                    // Feature 67: the root's y in the window frame.
+                    v[n * per + k * cfg.agent_features[0] + 67] += 0.02 * (k + 1) as f32;
+                }
+            }
+            Ok(v)
+        }
+    }
+
+    #[test]
+    fn a_symmetrized_forecast_of_a_mirrored_scene_is_the_mirrored_forecast() {
+        let scene = vec![person(1, 1.5, 0.3), person(2, 2.3, -0.4)];
+        let mirrored: Vec<HumanTrack> = scene
+            .iter()
+            .map(|t| {
+                let j: [Vector3<f64>; NUM_JOINTS] = joints(t);
+                let m = echo_motion::skeleton::mirror(&j);
+                HumanTrack::from_joints(t.track_id, m.iter().map(|p| [p.x, p.y, p.z]).collect())
+            })
+            .collect();
+        let forecasts = |symmetrize: bool| {
+            let mut s = ForecastServer::new(
+                ServerConfig {
+                    symmetrize,
+                    ..ServerConfig::default()
+                },
+                Box::new(Lopsided(echo_models::ZeroVelocityBackend::new(
+                    ForecasterConfig::default(),
+                ))),
+                None,
+                "lopsided",
+                RobotModel::tiago_dual(),
+            )
+            .unwrap();
+            for k in 0..8 {
+                s.on_skeletons("r", &frame("r", k, scene.clone(), Some(1)))
+                    .unwrap();
+                s.on_skeletons("m", &frame("m", k, mirrored.clone(), Some(1)))
+                    .unwrap();
+            }
+            assert_eq!(s.pairing("r"), Some((1, Other::Person(2))));
+            let out: BTreeMap<String, Forecast> = s
+                .run_batch()
+                .into_iter()
+                .map(|(r, f)| (r, f.unwrap()))
+                .collect();
+            assert_eq!(s.counters().batches, 1, "all copies in one forward pass");
+            (out["r"].human.clone(), out["m"].human.clone())
+        };
+        // Largest distance between the mirrored scene's forecast and the forecast mirrored.
+        let gap = |(r, m): (Vec<Vec<[f64; 3]>>, Vec<Vec<[f64; 3]>>)| {
+            let mut worst = 0.0f64;
+            for (fr, fm) in r.iter().zip(&m) {
+                let a: [Vector3<f64>; NUM_JOINTS] = std::array::from_fn(|j| v3(&fr[j]));
+                for (p, q) in echo_motion::skeleton::mirror(&a).iter().zip(fm) {
+                    worst = worst.max((p - v3(q)).norm());
+                }
+            }
+            worst
+        };
+        let plain = gap(forecasts(false));
+        assert!(plain > 0.1, "the model itself is lopsided ({plain:.3} m)");
+        let sym = gap(forecasts(true));
+        assert!(sym < 1e-5, "symmetrized: {sym:.2e} m");
     }
 
     #[test]

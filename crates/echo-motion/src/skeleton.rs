@@ -19,6 +19,15 @@ pub const MIRROR: [usize; NUM_JOINTS] = [
     0, 2, 1, 3, 5, 4, 6, 8, 7, 9, 11, 10, 12, 14, 13, 15, 17, 16, 19, 18, 21, 20,
 ];
 
+/// A body's mirror image across the x–z plane (y → −y), left and right joints exchanged: the
+/// same body seen in a mirror standing along x. Its own inverse.
+pub fn mirror(p: &[Vector3<f64>; NUM_JOINTS]) -> [Vector3<f64>; NUM_JOINTS] {
+    std::array::from_fn(|j| {
+        let s = p[MIRROR[j]];
+        Vector3::new(s.x, -s.y, s.z)
+    })
+}
+
 /// Kinematic chains (also used for bone-length checks).
 pub const CHAINS: [&[usize]; 5] = [
     &[0, 2, 5, 8, 11],
@@ -225,6 +234,18 @@ pub fn inverse(p: &[Vector3<f64>; NUM_JOINTS]) -> (Body, Pose) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_mirror_image_exchanges_left_and_right_and_is_its_own_inverse() {
+        let p = forward(&Body::with_height(1.7), &random_pose(3));
+        let m = mirror(&p);
+        // Joint 20 is the left wrist, 21 the right one.
+        assert_eq!(JOINT_NAMES[20], "left_wrist");
+        assert!((m[21] - Vector3::new(p[20].x, -p[20].y, p[20].z)).norm() < 1e-12);
+        for (a, b) in mirror(&m).iter().zip(&p) {
+            assert!((a - b).norm() < 1e-12);
+        }
+    }
 
     fn random_pose(seed: u64) -> Pose {
         use rand::{Rng, SeedableRng};

@@ -58,6 +58,11 @@ pub struct Args {
     /// instance of lower rank is alive for it (see echo_forecast::failover).
     #[arg(long, env = "ECHO_FORECAST_RANK", default_value_t = 0)]
     pub rank: u32,
+    /// Human–human models: publish the average of the forecasts of the scene, its mirror image
+    /// and the scene with the people's roles exchanged (ServerConfig::symmetrize; how the
+    /// shipped forecaster is measured on real captures). Also settable in --config.
+    #[arg(long, env = "ECHO_FORECAST_SYMMETRIZE")]
+    pub symmetrize: bool,
 }
 
 /// One input event, tagged with the robot it belongs to.
@@ -222,6 +227,7 @@ pub async fn serve(args: Args, stop: Shutdown) -> Result<()> {
     };
     // The histories never refuse a stamp the bus was told to let through.
     cfg.max_future_ms = cfg.max_future_ms.max(args.bus.max_clock_skew_ms() as f64);
+    cfg.symmetrize |= args.symmetrize;
     let robot_model = match &args.urdf {
         Some(p) => {
             RobotModel::from_urdf_file(p).with_context(|| format!("loading {}", p.display()))?
