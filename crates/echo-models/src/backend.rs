@@ -91,6 +91,45 @@ impl Backend for CandleBackend {
     }
 }
 
+/// Largest difference two backends may have on the same inputs to count as the same model
+/// (0.1 mm in the metre-scale features).
+pub const PARITY_TOLERANCE: f32 = 1e-4;
+
+/// Largest absolute difference between two backends' outputs on one deterministic batch of `b`
+/// windows (observed features uniform in ±1, prompt embeddings in ±0.1): the start-up check
+/// that a faster backend runs the same model. Errors when either fails or their shapes differ.
+pub fn disagreement(a: &mut dyn Backend, other: &mut dyn Backend, b: usize) -> anyhow::Result<f32> {
+    use rand::{Rng, SeedableRng};
+    let cfg = a.config().clone();
+    anyhow::ensure!(
+        other.config().agent_features == cfg.agent_features
+            && other.config().obs == cfg.obs
+            && other.config().pred == cfg.pred
+            && other.config().text_dim == cfg.text_dim,
+        "the backends run differently shaped models"
+    );
+    let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+    let per = cfg.obs * (cfg.agent_features[0] + cfg.agent_features[1]);
+    let obs: Vec<f32> = (0..b * per).map(|_| rng.random_range(-1.0..1.0)).collect();
+    let text: Vec<f32> = (0..b * cfg.text_dim)
+        .map(|_| rng.random_range(-0.1..0.1))
+        .collect();
+    let (x, y) = (a.predict(b, &obs, &text)?, other.predict(b, &obs, &text)?);
+    anyhow::ensure!(
+        x.len() == y.len(),
+        "{} against {} outputs",
+        x.len(),
+        y.len()
+    );
+    Ok(x.iter()
+        .zip(&y)
+        .map(|(p, q)| (p - q).abs())
+        .fold(
+            0.0,
+            |m: f32, d| if d.is_nan() { f32::INFINITY } else { m.max(d) },
+        ))
+}
+
 /// The zero-velocity forecaster as a backend: every future frame is the last observed one.
 /// A baseline to serve side by side with a model, and a model-free backend for tests.
 pub struct ZeroVelocityBackend {
@@ -130,5 +169,45 @@ impl Backend for ZeroVelocityBackend {
             }
         }
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Zero velocity, off by `by` everywhere.
+    struct Off(ZeroVelocityBackend, f32);
+
+    impl Backend for Off {
+        fn name(&self) -> String {
+            "off".into()
+        }
+        fn config(&self) -> &ForecasterConfig {
+            self.0.config()
+        }
+        fn predict(&mut self, b: usize, obs: &[f32], text: &[f32]) -> anyhow::Result<Vec<f32>> {
+            Ok(self
+                .0
+                .predict(b, obs, text)?
+                .iter()
+                .map(|x| x + self.1)
+                .collect())
+        }
+    }
+
+    #[test]
+    fn disagreement_measures_the_largest_output_difference() {
+        let cfg = ForecasterConfig::default();
+        let mut zv = ZeroVelocityBackend::new(cfg.clone());
+        let mut same = Off(ZeroVelocityBackend::new(cfg.clone()), 0.0);
+        assert_eq!(disagreement(&mut zv, &mut same, 3).unwrap(), 0.0);
+        let mut off = Off(ZeroVelocityBackend::new(cfg.clone()), 2e-3);
+        let d = disagreement(&mut zv, &mut off, 3).unwrap();
+        assert!((d - 2e-3).abs() < 1e-6 && d > PARITY_TOLERANCE, "{d}");
+        let mut nan = Off(ZeroVelocityBackend::new(cfg.clone()), f32::NAN);
+        assert_eq!(disagreement(&mut zv, &mut nan, 1).unwrap(), f32::INFINITY);
+        let mut other = ZeroVelocityBackend::new(ForecasterConfig { pred: 5, ..cfg });
+        assert!(disagreement(&mut zv, &mut other, 1).is_err());
     }
 }

@@ -10,6 +10,6 @@ pub mod predictor;
 pub mod robot_agent;
 pub mod train;
 
-pub use backend::{Backend, CandleBackend, ZeroVelocityBackend};
+pub use backend::{disagreement, Backend, CandleBackend, ZeroVelocityBackend, PARITY_TOLERANCE};
 pub use checkpoint::{Checkpoint, CheckpointMeta};
 pub use predictor::ModelPredictor;

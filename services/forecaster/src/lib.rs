@@ -41,9 +41,10 @@ pub struct Args {
         default_value = "models/forecaster"
     )]
     pub model: PathBuf,
-    /// Inference backend: candle, onnx (the checkpoint exported at start-up and run by ONNX
-    /// Runtime), or zero-velocity (the baseline, no model).
-    #[arg(long, env = "ECHO_FORECAST_BACKEND", value_enum, default_value_t = BackendKind::Candle)]
+    /// Inference backend: auto (ONNX Runtime when it is there and agrees with candle, else
+    /// candle), candle, onnx (the checkpoint exported at start-up and run by ONNX Runtime), or
+    /// zero-velocity (the baseline, no model).
+    #[arg(long, env = "ECHO_FORECAST_BACKEND", value_enum, default_value_t = BackendKind::Auto)]
     pub backend: BackendKind,
     /// How long a robot's new frame waits for other robots' frames to share its batch, ms.
     #[arg(long, default_value_t = 3)]
@@ -162,6 +163,10 @@ async fn follow_failover(
 /// The forecaster's inference backends.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum BackendKind {
+    /// The fastest backend that runs the same model: ONNX Runtime when its library loads and
+    /// its outputs agree with candle's within `PARITY_TOLERANCE` on a probe batch at start-up,
+    /// candle otherwise (the reason logged).
+    Auto,
     /// The checkpoint run by candle.
     Candle,
     /// The checkpoint exported to ONNX at start-up and run by ONNX Runtime.
@@ -192,6 +197,29 @@ pub fn load_backend(
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "forecaster".into());
     let backend: Box<dyn Backend> = match args.backend {
+        BackendKind::Auto => {
+            let cfg = ck.meta.model.clone();
+            let mut candle = CandleBackend::new(ck, dev);
+            match echo_onnx::OrtBackend::from_checkpoint(&args.model, cfg, 0).and_then(|mut ort| {
+                echo_models::disagreement(&mut candle, &mut ort, 4).map(|d| (ort, d))
+            }) {
+                Ok((ort, d)) if d <= echo_models::PARITY_TOLERANCE => {
+                    tracing::info!("serving with ONNX Runtime (agrees with candle within {d:.1e})");
+                    Box::new(ort)
+                }
+                Ok((_, d)) => {
+                    tracing::warn!(
+                        "ONNX Runtime differs from candle by {d:.1e} (more than {:.0e}): serving with candle",
+                        echo_models::PARITY_TOLERANCE
+                    );
+                    Box::new(candle)
+                }
+                Err(e) => {
+                    tracing::info!("serving with candle (ONNX Runtime: {e:#})");
+                    Box::new(candle)
+                }
+            }
+        }
         BackendKind::Candle => Box::new(CandleBackend::new(ck, dev)),
         BackendKind::Onnx => Box::new(echo_onnx::OrtBackend::from_checkpoint(
             &args.model,

@@ -11,7 +11,13 @@ struct Cli {
 }
 
 fn args(backend: &str) -> Args {
-    let model = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/forecaster");
+    args_for("forecaster", backend)
+}
+
+fn args_for(model: &str, backend: &str) -> Args {
+    let model = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../models")
+        .join(model);
     Cli::parse_from([
         "forecaster",
         "--model",
@@ -20,6 +26,23 @@ fn args(backend: &str) -> Args {
         backend,
     ])
     .args
+}
+
+/// The default backend is the fastest one that agrees with candle: ONNX Runtime for the
+/// human–human model where its library is installed; candle otherwise, and for the human–robot
+/// model (whose robot agent the ONNX export does not cover).
+#[test]
+fn the_default_backend_is_onnx_runtime_where_it_agrees_with_candle() {
+    let parsed = Cli::parse_from(["forecaster"]).args;
+    assert_eq!(parsed.backend, forecaster::BackendKind::Auto);
+    let ort = match echo_onnx::runtime::locate_dylib() {
+        Some(_) => "onnxruntime-cpu",
+        None => "candle-cpu",
+    };
+    for (model, want) in [("forecaster", ort), ("hri", "candle-cpu")] {
+        let (b, _, _) = load_backend(&args_for(model, "auto")).unwrap();
+        assert_eq!(b.name(), want, "{model}");
+    }
 }
 
 #[test]
@@ -38,7 +61,10 @@ fn candle_onnx_and_zero_velocity_backends_agree_on_shapes_and_values() {
     let e = Cli::try_parse_from(["forecaster", "--backend", "tensorrt"])
         .err()
         .expect("tensorrt is not a backend");
-    assert!(e.to_string().contains("candle, onnx, zero-velocity"), "{e}");
+    assert!(
+        e.to_string().contains("auto, candle, onnx, zero-velocity"),
+        "{e}"
+    );
     let cfg = candle.config().clone();
     let clip = echo_motion::synth::generate(&echo_motion::synth::Split::Test.clip(0));
     let w = echo_eval::window::windows(&clip, 8);
