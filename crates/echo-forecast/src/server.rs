@@ -779,7 +779,8 @@ mod tests {
             (out["r"].human.clone(), out["m"].human.clone())
         };
         // Largest distance between the mirrored scene's forecast and the forecast mirrored.
-        let gap = |(r, m): (Vec<Vec<[f64; 3]>>, Vec<Vec<[f64; 3]>>)| {
+        type Forecasts = Vec<Vec<[f64; 3]>>;
+        let gap = |(r, m): (Forecasts, Forecasts)| {
             let mut worst = 0.0f64;
             for (fr, fm) in r.iter().zip(&m) {
                 let a: [Vector3<f64>; NUM_JOINTS] = std::array::from_fn(|j| v3(&fr[j]));
