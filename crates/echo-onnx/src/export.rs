@@ -290,11 +290,32 @@ impl Graph {
     }
 }
 
-/// The ONNX model of a checkpoint: weights by name and the architecture.
+/// Per-agent inputs of a model whose agents have different features: (batch, frames, F_a).
+pub const AGENT_INPUTS: [&str; 2] = ["obs_a", "obs_b"];
+/// Per-agent outputs of such a model: (batch, predicted frames, F_a).
+pub const AGENT_OUTPUTS: [&str; 2] = ["forecast_a", "forecast_b"];
+
+/// A node naming a value as a graph output.
+fn identity(input: String, output: &str) -> NodeProto {
+    NodeProto {
+        input: vec![input],
+        output: vec![output.into()],
+        name: output.into(),
+        op_type: "Identity".into(),
+        attribute: vec![],
+    }
+}
+
+/// The ONNX model of a checkpoint: weights by name and the architecture. Two-person models
+/// read `obs` (batch, 2, frames, 73) and give `forecast` (batch, 2, predicted frames, 73);
+/// models whose agents differ read [`AGENT_INPUTS`] and give [`AGENT_OUTPUTS`].
 pub fn build(weights: HashMap<String, Tensor>, cfg: &ForecasterConfig) -> Result<ModelProto> {
+    // Two people share one input and one output tensor (batch, 2, frames, 73); models whose
+    // agents differ (the HRI model's robot agent) take and give one tensor per agent.
+    let two_person = cfg.agent_features == [FEATURES, FEATURES];
     anyhow::ensure!(
-        cfg.agent_features == [FEATURES, FEATURES],
-        "ONNX export covers two-person models (agent features {:?})",
+        cfg.agent_features.iter().all(|f| *f > 0),
+        "agent features {:?}",
         cfg.agent_features
     );
     let mut g = Graph {
@@ -341,10 +362,14 @@ pub fn build(weights: HashMap<String, Tensor>, cfg: &ForecasterConfig) -> Result
     let mut agents = vec![];
     let mut lasts = vec![];
     for a in 0..2 {
-        let idx = g.init_i64("agent", &[a as i64]);
-        let x = g.op("Gather", &["obs", &idx], vec![int("axis", 1)]);
-        let ax = g.init_i64("axes", &[1]);
-        let x = g.op("Squeeze", &[&x, &ax], vec![]);
+        let x = if two_person {
+            let idx = g.init_i64("agent", &[a as i64]);
+            let x = g.op("Gather", &["obs", &idx], vec![int("axis", 1)]);
+            let ax = g.init_i64("axes", &[1]);
+            g.op("Squeeze", &[&x, &ax], vec![])
+        } else {
+            AGENT_INPUTS[a].to_string()
+        };
         let last = g.slice(&x, 1, n_obs - 1, n_obs);
         let reps = g.init_i64("expand", &[1, t - n_obs, 1]);
         let rep = g.op("Expand", &[&last, &reps], vec![]);
@@ -413,19 +438,41 @@ pub fn build(weights: HashMap<String, Tensor>, cfg: &ForecasterConfig) -> Result
         } else {
             y
         };
-        let ax = g.init_i64("axes", &[1]);
-        outs.push(g.op("Unsqueeze", &[&y, &ax], vec![]));
+        if two_person {
+            let ax = g.init_i64("axes", &[1]);
+            outs.push(g.op("Unsqueeze", &[&y, &ax], vec![]));
+        } else {
+            outs.push(y);
+        }
     }
-    let out = g.op("Concat", &[&outs[0], &outs[1]], vec![int("axis", 1)]);
-    g.nodes.push(NodeProto {
-        input: vec![out],
-        output: vec!["forecast".into()],
-        name: "forecast".into(),
-        op_type: "Identity".into(),
-        attribute: vec![],
-    });
     let f = FEATURES as i64;
-    let mut inputs = vec![value_info("obs", &[Err("batch"), Ok(2), Ok(n_obs), Ok(f)])];
+    let (mut inputs, outputs) = if two_person {
+        let out = g.op("Concat", &[&outs[0], &outs[1]], vec![int("axis", 1)]);
+        g.nodes.push(identity(out, "forecast"));
+        (
+            vec![value_info("obs", &[Err("batch"), Ok(2), Ok(n_obs), Ok(f)])],
+            vec![value_info(
+                "forecast",
+                &[Err("batch"), Ok(2), Ok(pred), Ok(f)],
+            )],
+        )
+    } else {
+        let mut inputs = vec![];
+        let mut outputs = vec![];
+        for (a, y) in outs.into_iter().enumerate() {
+            let fa = cfg.agent_features[a] as i64;
+            g.nodes.push(identity(y, AGENT_OUTPUTS[a]));
+            inputs.push(value_info(
+                AGENT_INPUTS[a],
+                &[Err("batch"), Ok(n_obs), Ok(fa)],
+            ));
+            outputs.push(value_info(
+                AGENT_OUTPUTS[a],
+                &[Err("batch"), Ok(pred), Ok(fa)],
+            ));
+        }
+        (inputs, outputs)
+    };
     if text {
         inputs.push(value_info("text", &[Err("batch"), Ok(cfg.text_dim as i64)]));
     }
@@ -440,10 +487,7 @@ pub fn build(weights: HashMap<String, Tensor>, cfg: &ForecasterConfig) -> Result
             name: "forecaster".into(),
             initializer: g.inits,
             input: inputs,
-            output: vec![value_info(
-                "forecast",
-                &[Err("batch"), Ok(2), Ok(pred), Ok(f)],
-            )],
+            output: outputs,
         }),
         opset_import: vec![OperatorSetIdProto {
             domain: String::new(),

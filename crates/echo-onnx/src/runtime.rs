@@ -109,6 +109,49 @@ impl OrtBackend {
     }
 }
 
+impl OrtBackend {
+    /// A model whose agents have different features: one tensor per agent in and out, each
+    /// window's values regrouped from and back to the backend layout (A's frames, then B's).
+    fn predict_per_agent(&mut self, b: usize, obs: &[f32], text: &[f32]) -> Result<Vec<f32>> {
+        use crate::export::{AGENT_INPUTS, AGENT_OUTPUTS};
+        let [fa, fb] = self.cfg.agent_features;
+        let (n, pred) = (self.cfg.obs, self.cfg.pred);
+        let per = n * (fa + fb);
+        let (mut xa, mut xb) = (
+            Vec::with_capacity(b * n * fa),
+            Vec::with_capacity(b * n * fb),
+        );
+        for w in obs.chunks_exact(per) {
+            xa.extend_from_slice(&w[..n * fa]);
+            xb.extend_from_slice(&w[n * fa..]);
+        }
+        let xa = Tensor::from_array(([b, n, fa], xa))?;
+        let xb = Tensor::from_array(([b, n, fb], xb))?;
+        let outputs = if self.cfg.text_dim > 0 {
+            let t = Tensor::from_array(([b, self.cfg.text_dim], text.to_vec()))?;
+            self.session
+                .run(ort::inputs![AGENT_INPUTS[0] => xa, AGENT_INPUTS[1] => xb, "text" => t])?
+        } else {
+            self.session
+                .run(ort::inputs![AGENT_INPUTS[0] => xa, AGENT_INPUTS[1] => xb])?
+        };
+        let (_, ya) = outputs[AGENT_OUTPUTS[0]].try_extract_tensor::<f32>()?;
+        let (_, yb) = outputs[AGENT_OUTPUTS[1]].try_extract_tensor::<f32>()?;
+        anyhow::ensure!(
+            ya.len() == b * pred * fa && yb.len() == b * pred * fb,
+            "the session gave {} and {} values for a batch of {b}",
+            ya.len(),
+            yb.len()
+        );
+        let mut y = Vec::with_capacity(b * pred * (fa + fb));
+        for (wa, wb) in ya.chunks_exact(pred * fa).zip(yb.chunks_exact(pred * fb)) {
+            y.extend_from_slice(wa);
+            y.extend_from_slice(wb);
+        }
+        Ok(y)
+    }
+}
+
 impl Backend for OrtBackend {
     fn name(&self) -> String {
         "onnxruntime-cpu".into()
@@ -120,6 +163,9 @@ impl Backend for OrtBackend {
 
     fn predict(&mut self, b: usize, obs: &[f32], text: &[f32]) -> Result<Vec<f32>> {
         check_sizes(&self.cfg, b, obs, text)?;
+        if self.cfg.agent_features != [FEATURES, FEATURES] {
+            return self.predict_per_agent(b, obs, text);
+        }
         let x = Tensor::from_array(([b, 2, self.cfg.obs, FEATURES], obs.to_vec()))?;
         let outputs = if self.cfg.text_dim > 0 {
             let t = Tensor::from_array(([b, self.cfg.text_dim], text.to_vec()))?;

@@ -71,11 +71,17 @@ fn onnx_checker_accepts_shipped_export() {
     let Some(dir) = python_onnx() else {
         return;
     };
-    let stem = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/forecaster");
     let scratch = tempfile::tempdir().unwrap();
-    let out = scratch.path().join("forecaster.onnx");
-    echo_onnx::export_checkpoint(&stem, &out).unwrap();
-    check(&dir, &[out]);
+    let mut files = vec![];
+    for name in ["forecaster", "hri"] {
+        let stem = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../models")
+            .join(name);
+        let out = scratch.path().join(format!("{name}.onnx"));
+        echo_onnx::export_checkpoint(&stem, &out).unwrap();
+        files.push(out);
+    }
+    check(&dir, &files);
 }
 
 #[test]

@@ -121,6 +121,77 @@ fn shipped_checkpoint_exports_and_matches() {
     assert!(d <= 1e-4, "shipped model: max difference {d}");
 }
 
+/// A model whose agents differ (the HRI model: a person and the robot's joints) exports with
+/// one input and one output per agent; ONNX Runtime computes what candle computes, for random
+/// weights with and without the velocity prior and for the shipped HRI checkpoint.
+#[test]
+fn robot_agent_models_match_candle() {
+    if !runtime_available() {
+        return;
+    }
+    let dev = Device::Cpu;
+    let base = ForecasterConfig {
+        agent_features: [FEATURES, echo_models::robot_agent::ROBOT_FEATURES],
+        text_dim: 16,
+        ..Default::default()
+    };
+    let scratch = tempfile::tempdir().unwrap();
+    for (i, cfg) in [
+        base.clone(),
+        ForecasterConfig {
+            velocity_prior_s: 0.4,
+            ..base
+        },
+    ]
+    .iter()
+    .enumerate()
+    {
+        // Random values everywhere (the decoders and time mixers start at zero).
+        let weights: HashMap<String, Tensor> = common::random_weights(cfg)
+            .into_iter()
+            .map(|(k, v)| (k, Tensor::randn(0f32, 0.3, v.dims(), &dev).unwrap()))
+            .collect();
+        let path = scratch.path().join(format!("robot{i}.onnx"));
+        std::fs::write(&path, build(weights.clone(), cfg).unwrap().encode_to_vec()).unwrap();
+        let mut ort = OrtBackend::load(&path, cfg.clone(), 1).unwrap();
+        let vm = VarMap::new();
+        let model =
+            Forecaster::new(cfg.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev)).unwrap();
+        for (name, var) in vm.data().lock().unwrap().iter() {
+            var.set(&weights[name]).unwrap();
+        }
+        let [fa, fb] = cfg.agent_features;
+        for b in [1usize, 3] {
+            let xa = Tensor::randn(0f32, 1.0, (b, cfg.obs, fa), &dev).unwrap();
+            let xb = Tensor::randn(0f32, 1.0, (b, cfg.obs, fb), &dev).unwrap();
+            let text = Tensor::randn(0f32, 1.0, (b, cfg.text_dim), &dev).unwrap();
+            let ([ya, yb], _) = model.forward_pair(&xa, &xb, Some(&text)).unwrap();
+            let flat = |t: &Tensor| t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+            // The backend layout: per window A's frames, then B's.
+            let (xa, xb, ya, yb) = (flat(&xa), flat(&xb), flat(&ya), flat(&yb));
+            let mut obs = vec![];
+            let mut want = vec![];
+            for w in 0..b {
+                obs.extend_from_slice(&xa[w * cfg.obs * fa..(w + 1) * cfg.obs * fa]);
+                obs.extend_from_slice(&xb[w * cfg.obs * fb..(w + 1) * cfg.obs * fb]);
+                want.extend_from_slice(&ya[w * cfg.pred * fa..(w + 1) * cfg.pred * fa]);
+                want.extend_from_slice(&yb[w * cfg.pred * fb..(w + 1) * cfg.pred * fb]);
+            }
+            let got = ort.predict(b, &obs, &flat(&text)).unwrap();
+            let d = max_diff(&want, &got);
+            eprintln!("robot-agent variant {i}, batch {b}: max |candle − ort| {d:.2e}");
+            assert!(d < 1e-4, "robot-agent variant {i}, batch {b}: {d}");
+        }
+    }
+    let stem = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/hri");
+    let ck = Checkpoint::load(&stem, &dev).unwrap();
+    let mut ort = OrtBackend::from_checkpoint(&stem, ck.meta.model.clone(), 0).unwrap();
+    let mut candle = CandleBackend::new(ck, dev);
+    let d = echo_models::disagreement(&mut candle, &mut ort, 16).unwrap();
+    eprintln!("models/hri, batch 16: max |candle − ort| {d:.2e}");
+    assert!(d <= echo_models::PARITY_TOLERANCE, "models/hri: {d}");
+}
+
 #[test]
 fn wrong_sizes_are_errors() {
     if !runtime_available() {

@@ -28,9 +28,8 @@ fn args_for(model: &str, backend: &str) -> Args {
     .args
 }
 
-/// The default backend is the fastest one that agrees with candle: ONNX Runtime for the
-/// human–human model where its library is installed; candle otherwise, and for the human–robot
-/// model (whose robot agent the ONNX export does not cover).
+/// The default backend is the fastest one that agrees with candle: ONNX Runtime, for the
+/// human–human and the human–robot model, where its library is installed; candle otherwise.
 #[test]
 fn the_default_backend_is_onnx_runtime_where_it_agrees_with_candle() {
     let parsed = Cli::parse_from(["forecaster"]).args;
@@ -39,7 +38,7 @@ fn the_default_backend_is_onnx_runtime_where_it_agrees_with_candle() {
         Some(_) => "onnxruntime-cpu",
         None => "candle-cpu",
     };
-    for (model, want) in [("forecaster", ort), ("hri", "candle-cpu")] {
+    for (model, want) in [("forecaster", ort), ("hri", ort)] {
         let (b, _, _) = load_backend(&args_for(model, "auto")).unwrap();
         assert_eq!(b.name(), want, "{model}");
     }
