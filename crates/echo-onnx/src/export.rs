@@ -361,14 +361,14 @@ pub fn build(weights: HashMap<String, Tensor>, cfg: &ForecasterConfig) -> Result
     };
     let mut agents = vec![];
     let mut lasts = vec![];
-    for a in 0..2 {
+    for (a, input) in AGENT_INPUTS.iter().enumerate() {
         let x = if two_person {
             let idx = g.init_i64("agent", &[a as i64]);
             let x = g.op("Gather", &["obs", &idx], vec![int("axis", 1)]);
             let ax = g.init_i64("axes", &[1]);
             g.op("Squeeze", &[&x, &ax], vec![])
         } else {
-            AGENT_INPUTS[a].to_string()
+            input.to_string()
         };
         let last = g.slice(&x, 1, n_obs - 1, n_obs);
         let reps = g.init_i64("expand", &[1, t - n_obs, 1]);
