@@ -10,33 +10,14 @@
 //! ŷ = ¼ Σ_{g ∈ {id, M, S, M∘S}} g⁻¹( f( g(x) ) )     M: y → −y, left ↔ right   S: A ↔ B
 //! ```
 
+use echo_motion::symmetry::{Symmetry, PAIR, SINGLE};
 use nalgebra::Vector3;
 
 use crate::metrics::Frame;
 use crate::window::{Predictor, Window};
 
-/// Mirror image across the x–z plane, left and right joints exchanged (its own inverse).
-pub fn mirror_frame(f: &Frame) -> Frame {
-    f.iter().map(echo_motion::skeleton::mirror).collect()
-}
-
-/// The people's order reversed (its own inverse).
-pub fn swap_frame(f: &Frame) -> Frame {
-    f.iter().rev().copied().collect()
-}
-
 /// A predictor averaged over the symmetries of a two-person scene (module docs).
 pub struct Symmetrized<P>(pub P);
-
-type Transform = fn(&Frame) -> Frame;
-
-fn identity(f: &Frame) -> Frame {
-    f.clone()
-}
-
-fn mirror_swap(f: &Frame) -> Frame {
-    mirror_frame(&swap_frame(f))
-}
 
 impl<P: Predictor> Predictor for Symmetrized<P> {
     fn name(&self) -> String {
@@ -45,17 +26,13 @@ impl<P: Predictor> Predictor for Symmetrized<P> {
 
     fn predict(&mut self, batch: &[&Window]) -> Vec<Vec<Frame>> {
         let pair = batch.iter().all(|w| w.obs.iter().all(|f| f.len() == 2));
-        let group: &[Transform] = if pair {
-            &[identity, mirror_frame, swap_frame, mirror_swap]
-        } else {
-            &[identity, mirror_frame]
-        };
+        let group: &[Symmetry] = if pair { &PAIR } else { &SINGLE };
         // Every transform is its own inverse; all copies go through one call (one batch).
         let copies: Vec<Window> = group
             .iter()
             .flat_map(|g| {
                 batch.iter().map(move |w| Window {
-                    obs: w.obs.iter().map(g).collect(),
+                    obs: w.obs.iter().map(|f| g(f)).collect(),
                     ..(*w).clone()
                 })
             })
@@ -69,7 +46,7 @@ impl<P: Predictor> Predictor for Symmetrized<P> {
                 let back: Vec<Vec<Frame>> = group
                     .iter()
                     .enumerate()
-                    .map(|(gi, g)| preds[gi * n + i].iter().map(g).collect())
+                    .map(|(gi, g)| preds[gi * n + i].iter().map(|f| g(f)).collect())
                     .collect();
                 (0..back[0].len())
                     .map(|t| {
@@ -91,6 +68,7 @@ impl<P: Predictor> Predictor for Symmetrized<P> {
 mod tests {
     use super::*;
     use crate::window::{ConstantVelocity, OBS_FRAMES, PRED_FRAMES};
+    use echo_motion::symmetry::{mirror, swap};
 
     /// Deliberately lopsided: moves person A (only) towards +y, by an amount that depends on
     /// A's left wrist.
@@ -152,22 +130,22 @@ mod tests {
     fn the_average_is_invariant_to_roles_and_reflection_though_the_predictor_is_not() {
         let w = window(0.7);
         let swapped = Window {
-            obs: w.obs.iter().map(swap_frame).collect(),
+            obs: w.obs.iter().map(|f| swap(f)).collect(),
             ..w.clone()
         };
         let mirrored = Window {
-            obs: w.obs.iter().map(mirror_frame).collect(),
+            obs: w.obs.iter().map(|f| mirror(f)).collect(),
             ..w.clone()
         };
         // The inner predictor depends on who is called A.
         let raw = Lopsided.predict(&[&w, &swapped]);
-        let raw_back: Vec<Frame> = raw[1].iter().map(swap_frame).collect();
+        let raw_back: Vec<Frame> = raw[1].iter().map(|f| swap(f)).collect();
         assert!(!close(&raw[0], &raw_back));
 
         let mut sym = Symmetrized(Lopsided);
         let p = sym.predict(&[&w, &swapped, &mirrored]);
-        let from_swapped: Vec<Frame> = p[1].iter().map(swap_frame).collect();
-        let from_mirrored: Vec<Frame> = p[2].iter().map(mirror_frame).collect();
+        let from_swapped: Vec<Frame> = p[1].iter().map(|f| swap(f)).collect();
+        let from_mirrored: Vec<Frame> = p[2].iter().map(|f| mirror(f)).collect();
         assert!(close(&p[0], &from_swapped), "role swap");
         assert!(close(&p[0], &from_mirrored), "reflection");
         assert_eq!(sym.name(), "lopsided (symmetrized)");

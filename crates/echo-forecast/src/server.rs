@@ -50,33 +50,12 @@ pub struct ServerConfig {
     pub resync_after_ms: f64,
     /// Human–human models: forecast the scene, its mirror image, the scene with the two
     /// people's roles exchanged, and both, and publish the average of the four forecasts mapped
-    /// back ([`symmetries`]). The forecast then does not depend on which person is called A nor
+    /// back ([`echo_motion::symmetry::PAIR`]). The forecast then does not depend on which person is called A nor
     /// on left and right, whatever the model learned; four copies share one forward pass.
     /// Meant for prompts that name no role or side (the real-capture descriptions the shipped
     /// forecaster is measured on, docs/RESULTS.md); robot-agent models ignore it (the robot has
     /// no role to exchange).
     pub symmetrize: bool,
-}
-
-/// A transform of one frame of a two-agent scene (each its own inverse).
-pub type Symmetry = fn(&[[Vector3<f64>; NUM_JOINTS]]) -> Vec<[Vector3<f64>; NUM_JOINTS]>;
-
-/// The symmetries of a two-person scene: identity, mirror image across the x–z plane (left and
-/// right exchanged), roles exchanged, and both.
-pub fn symmetries() -> [Symmetry; 4] {
-    fn identity(f: &[[Vector3<f64>; NUM_JOINTS]]) -> Vec<[Vector3<f64>; NUM_JOINTS]> {
-        f.to_vec()
-    }
-    fn mirror(f: &[[Vector3<f64>; NUM_JOINTS]]) -> Vec<[Vector3<f64>; NUM_JOINTS]> {
-        f.iter().map(echo_motion::skeleton::mirror).collect()
-    }
-    fn swap(f: &[[Vector3<f64>; NUM_JOINTS]]) -> Vec<[Vector3<f64>; NUM_JOINTS]> {
-        f.iter().rev().copied().collect()
-    }
-    fn both(f: &[[Vector3<f64>; NUM_JOINTS]]) -> Vec<[Vector3<f64>; NUM_JOINTS]> {
-        mirror(&swap(f))
-    }
-    [identity, mirror, swap, both]
 }
 
 impl Default for ServerConfig {
@@ -446,7 +425,7 @@ impl ForecastServer {
         let robot_agent = self.robot_agent();
         let [fa, fb] = cfg.agent_features;
         // Copies of each scene in the batch: the four symmetries, or the scene alone.
-        let group = symmetries();
+        let group = echo_motion::symmetry::PAIR;
         let copies = match self.cfg.symmetrize && !robot_agent {
             true => group.len(),
             false => 1,

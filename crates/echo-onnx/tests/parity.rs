@@ -3,12 +3,9 @@
 
 mod common;
 
-use std::collections::HashMap;
-
-use candle_core::{DType, Device, Tensor};
-use candle_nn::{VarBuilder, VarMap};
+use candle_core::{Device, Tensor};
 use echo_models::features::FEATURES;
-use echo_models::model::{Forecaster, ForecasterConfig};
+use echo_models::model::ForecasterConfig;
 use echo_models::{Backend, CandleBackend, Checkpoint};
 use echo_onnx::export::build;
 use echo_onnx::OrtBackend;
@@ -45,16 +42,7 @@ fn every_variant_matches_candle() {
     let scratch = tempfile::tempdir().unwrap();
     let dir = scratch.path().to_path_buf();
     for (i, cfg) in variants.iter().enumerate() {
-        let vm = VarMap::new();
-        let model =
-            Forecaster::new(cfg.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev)).unwrap();
-        // Random weights everywhere (the decoders and time mixers start at zero).
-        let mut weights = HashMap::new();
-        for (name, var) in vm.data().lock().unwrap().iter() {
-            let r = Tensor::randn(0f32, 0.3, var.dims(), &dev).unwrap();
-            var.set(&r).unwrap();
-            weights.insert(name.clone(), r);
-        }
+        let (model, weights) = common::random_model(cfg);
         let path = dir.join(format!("v{i}.onnx"));
         std::fs::write(&path, build(weights, cfg).unwrap().encode_to_vec()).unwrap();
         let mut ort = OrtBackend::load(&path, cfg.clone(), 1).unwrap();
@@ -146,20 +134,10 @@ fn robot_agent_models_match_candle() {
     .iter()
     .enumerate()
     {
-        // Random values everywhere (the decoders and time mixers start at zero).
-        let weights: HashMap<String, Tensor> = common::random_weights(cfg)
-            .into_iter()
-            .map(|(k, v)| (k, Tensor::randn(0f32, 0.3, v.dims(), &dev).unwrap()))
-            .collect();
+        let (model, weights) = common::random_model(cfg);
         let path = scratch.path().join(format!("robot{i}.onnx"));
-        std::fs::write(&path, build(weights.clone(), cfg).unwrap().encode_to_vec()).unwrap();
+        std::fs::write(&path, build(weights, cfg).unwrap().encode_to_vec()).unwrap();
         let mut ort = OrtBackend::load(&path, cfg.clone(), 1).unwrap();
-        let vm = VarMap::new();
-        let model =
-            Forecaster::new(cfg.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev)).unwrap();
-        for (name, var) in vm.data().lock().unwrap().iter() {
-            var.set(&weights[name]).unwrap();
-        }
         let [fa, fb] = cfg.agent_features;
         for b in [1usize, 3] {
             let xa = Tensor::randn(0f32, 1.0, (b, cfg.obs, fa), &dev).unwrap();

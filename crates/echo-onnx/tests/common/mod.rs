@@ -7,6 +7,23 @@ use candle_core::{DType, Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
 use echo_models::model::{Forecaster, ForecasterConfig};
 
+/// A forecaster with `cfg` whose every weight is random (the decoders and time mixers of a
+/// fresh one start at zero), and those weights by name.
+#[allow(dead_code)] // not every test binary that includes this module uses it
+pub fn random_model(cfg: &ForecasterConfig) -> (Forecaster, HashMap<String, Tensor>) {
+    let dev = Device::Cpu;
+    let vm = VarMap::new();
+    let model = Forecaster::new(cfg.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev))
+        .expect("a forecaster of this configuration");
+    let mut weights = HashMap::new();
+    for (name, var) in vm.data().lock().expect("weights").iter() {
+        let r = Tensor::randn(0f32, 0.3, var.dims(), &dev).expect("random values");
+        var.set(&r).expect("same shape");
+        weights.insert(name.clone(), r);
+    }
+    (model, weights)
+}
+
 /// The freshly initialised weights of a forecaster with `cfg`, by name.
 pub fn random_weights(cfg: &ForecasterConfig) -> HashMap<String, Tensor> {
     let vm = VarMap::new();
