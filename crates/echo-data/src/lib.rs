@@ -20,7 +20,7 @@ use echo_motion::synth::Split;
 use rand::{Rng, SeedableRng};
 
 pub use source::Capture;
-pub use spec::{Item, Source, Spec, SpecError};
+pub use spec::{Family, Item, Source, Spec, SpecError};
 
 /// Why data could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -135,7 +135,7 @@ mod tests {
         let item = |w: f64| Item {
             source: Source::Synthetic {
                 clips: None,
-                walking: false,
+                family: Family::Standing,
             },
             weight: Some(w),
         };

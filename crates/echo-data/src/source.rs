@@ -13,9 +13,11 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use echo_motion::capture::{load_bvh_pair, CleanReport, PairOptions};
-use echo_motion::synth::{generate_split, generate_walking_split, Clip, Split};
+use echo_motion::synth::{
+    generate_greeting_split, generate_split, generate_walking_split, Clip, Split,
+};
 
-use crate::spec::Source;
+use crate::spec::{Family, Source};
 use crate::DataError;
 
 /// A two-person capture from some source.
@@ -136,16 +138,16 @@ pub fn load(
     synthetic_clips: u64,
 ) -> Result<Vec<Capture>, DataError> {
     match source {
-        Source::Synthetic { clips, walking } => {
+        Source::Synthetic { clips, family } => {
             let train = clips.unwrap_or(synthetic_clips).max(1);
             let n = match split {
                 Split::Train => train,
                 _ => (train / 20).max(26),
             };
-            let clips = if *walking {
-                generate_walking_split(split, 0..n, 2, &|| {})
-            } else {
-                generate_split(split, 0..n, 2, &|| {})
+            let clips = match family {
+                Family::Walking => generate_walking_split(split, 0..n, 2, &|| {}),
+                Family::Greeting => generate_greeting_split(split, 0..n, 2, &|| {}),
+                Family::Standing => generate_split(split, 0..n, 2, &|| {}),
             };
             Ok(clips
                 .into_iter()

@@ -6,6 +6,8 @@
 //! source := "synthetic" [":" clips]            the generator (clips for the train split)
 //!         | "synthetic-walk" [":" clips]       the generator's walking clips (approaches from
 //!                                              2.4–5 m at 0.6–1.5 m/s, smooth starts and stops)
+//!         | "synthetic-greet" [":" clips]      walking handshakes, high fives and handovers
+//!                                              held 0.1–0.8 s, then a step back
 //!         | "intergen:" root                   InterGen / InterHuman layout
 //!         | "bvh:" a.bvh "+" b.bvh ["@" text]  one two-person capture (two files, one clock)
 //!         | "cmu:" dir                         every CMU pair in dir: <s>_<t>.bvh + <s+1>_<t>.bvh
@@ -24,8 +26,8 @@ pub enum Source {
     Synthetic {
         /// Training clips (None: the caller's default).
         clips: Option<u64>,
-        /// The walking clips (`synthetic-walk`) instead of the original choreography.
-        walking: bool,
+        /// Which of the generator's families.
+        family: Family,
     },
     /// The InterGen / InterHuman layout (`motions_processed/person{1,2}/*.npy`, `annots/`,
     /// `split/{train,val,test}.txt`).
@@ -54,6 +56,17 @@ pub enum Source {
     },
 }
 
+/// The generator's clip families.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Family {
+    /// `synthetic`: the original choreography (every type, short approaches).
+    Standing,
+    /// `synthetic-walk`: walking clips ([`echo_motion::synth::Split::walking_clip`]).
+    Walking,
+    /// `synthetic-greet`: brief exchanges on the way ([`echo_motion::synth::Split::greeting_clip`]).
+    Greeting,
+}
+
 /// A source with its sampling weight in a mix.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Item {
@@ -72,7 +85,7 @@ pub struct Spec {
 
 /// Why a spec does not parse.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("data spec '{spec}': {what} (forms: synthetic[:clips], synthetic-walk[:clips], intergen:ROOT, bvh:A.bvh+B.bvh[@TEXT], cmu:DIR, echo:DIR; each optionally *WEIGHT, comma-separated)")]
+#[error("data spec '{spec}': {what} (forms: synthetic[:clips], synthetic-walk[:clips], synthetic-greet[:clips], intergen:ROOT, bvh:A.bvh+B.bvh[@TEXT], cmu:DIR, echo:DIR; each optionally *WEIGHT, comma-separated)")]
 pub struct SpecError {
     /// The spec.
     pub spec: String,
@@ -116,8 +129,12 @@ impl Spec {
                 }
             };
             let source = match kind {
-                "synthetic" | "synthetic-walk" => Source::Synthetic {
-                    walking: kind == "synthetic-walk",
+                "synthetic" | "synthetic-walk" | "synthetic-greet" => Source::Synthetic {
+                    family: match kind {
+                        "synthetic-walk" => Family::Walking,
+                        "synthetic-greet" => Family::Greeting,
+                        _ => Family::Standing,
+                    },
                     clips: if arg.is_empty() {
                         None
                     } else {
@@ -167,7 +184,7 @@ impl Spec {
 /// so a comma there would be ambiguous: prompts may not contain commas followed by a source
 /// name; a comma followed by a known source keyword always starts a new item).
 fn split_items(text: &str) -> Vec<String> {
-    // "synthetic" also starts "synthetic-walk".
+    // "synthetic" also starts "synthetic-walk" and "synthetic-greet".
     const KEYS: [&str; 5] = ["synthetic", "intergen:", "bvh:", "cmu:", "echo:"];
     let mut out = vec![String::new()];
     let mut rest = text;
@@ -203,7 +220,7 @@ mod tests {
             Item {
                 source: Source::Synthetic {
                     clips: Some(1300),
-                    walking: false
+                    family: Family::Standing
                 },
                 weight: Some(0.5)
             }
@@ -221,14 +238,21 @@ mod tests {
             Spec::parse("synthetic").unwrap().items[0].source,
             Source::Synthetic {
                 clips: None,
-                walking: false
+                family: Family::Standing
             }
         );
         assert_eq!(
             Spec::parse("synthetic-walk:30").unwrap().items[0].source,
             Source::Synthetic {
                 clips: Some(30),
-                walking: true
+                family: Family::Walking
+            }
+        );
+        assert_eq!(
+            Spec::parse("synthetic-greet:9*0.2").unwrap().items[0].source,
+            Source::Synthetic {
+                clips: Some(9),
+                family: Family::Greeting
             }
         );
     }

@@ -35,6 +35,14 @@ pub const WALKING_KINDS: [Interaction; 6] = [
     Interaction::WalkPast,
 ];
 
+/// The interaction types of the greeting clips ([`Split::greeting_clip`]): exchanges of hands
+/// made on the way, briefly.
+pub const GREETING_KINDS: [Interaction; 3] = [
+    Interaction::Handshake,
+    Interaction::HighFive,
+    Interaction::Handover,
+];
+
 /// Ranges the clip parameters are drawn from.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParamRanges {
@@ -122,6 +130,11 @@ pub struct ClipParams {
     /// back 0.2–0.6 m. `false`: the original choreography (short approaches; every existing
     /// split).
     pub locomotion: bool,
+    /// With `locomotion`, a brief exchange ([`Split::greeting_clip`]): the hands rise while
+    /// walking and meet on arrival, are held 0.1–0.8 s, and both step back at once to
+    /// 1.1–1.8 m apart (the way the real walk-up handshake of CMU 18_01 + 19_01 goes:
+    /// 0.3 s, then 1.2–1.7 m). `false`: the exchange is held about 2 s.
+    pub brief: bool,
 }
 
 impl ClipParams {
@@ -146,6 +159,7 @@ impl ClipParams {
                 rng.random_range(-PI..PI),
             ),
             locomotion: false,
+            brief: false,
         }
     }
 }
@@ -206,16 +220,37 @@ impl Split {
     /// 500 000 000 after the split's own).
     pub fn walking_clip(self, i: u64) -> ClipParams {
         let kind = WALKING_KINDS[(i % WALKING_KINDS.len() as u64) as usize];
-        let ranges = match self {
+        let mut p = ClipParams::sample(
+            kind,
+            &self.walking_ranges(),
+            self.seed_base() + 500_000_000 + i,
+        );
+        p.locomotion = true;
+        p
+    }
+
+    /// The `i`-th greeting clip of the split: a walking clip of [`GREETING_KINDS`] (in turn)
+    /// whose exchange is brief ([`ClipParams::brief`]); seeds 700 000 000 after the split's own.
+    pub fn greeting_clip(self, i: u64) -> ClipParams {
+        let kind = GREETING_KINDS[(i % GREETING_KINDS.len() as u64) as usize];
+        let mut p = ClipParams::sample(
+            kind,
+            &self.walking_ranges(),
+            self.seed_base() + 700_000_000 + i,
+        );
+        p.locomotion = true;
+        p.brief = true;
+        p
+    }
+
+    fn walking_ranges(self) -> ParamRanges {
+        match self {
             Split::HeldOut => ParamRanges {
                 distance: (2.4, 5.0),
                 speed: (0.6, 1.5),
                 ..ParamRanges::held_out()
             },
             _ => ParamRanges::walking(),
-        };
-        let mut p = ClipParams::sample(kind, &ranges, self.seed_base() + 500_000_000 + i);
-        p.locomotion = true;
-        p
+        }
     }
 }

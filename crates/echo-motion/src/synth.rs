@@ -11,7 +11,7 @@ use echo_msgs::Interaction;
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
 
-pub use crate::params::{ClipParams, ParamRanges, Split, KINDS, WALKING_KINDS};
+pub use crate::params::{ClipParams, ParamRanges, Split, GREETING_KINDS, KINDS, WALKING_KINDS};
 use crate::posing::{arm_length, pose, to_arm_target, wrap, Intent};
 use crate::skeleton::{forward, j, Body, NUM_JOINTS};
 
@@ -271,9 +271,38 @@ impl Scene {
                         _ => 0.8 + 0.12 * self.r[1],
                     }
                     // Walking people stop where it suits them, not at arm's length exactly.
-                    + if p.locomotion { 0.3 * self.r[3] } else { 0.0 };
+                    + match (p.locomotion, p.brief) {
+                        (true, false) => 0.3 * self.r[3],
+                        // Close enough for the hands to meet at once.
+                        (true, true) => 0.1 * self.r[3],
+                        _ => 0.0,
+                    };
                 let (mut xa, mut xb, t_arrive, mut gait) = self.approach(meet, t);
-                if p.locomotion && self.r[6] < 0.6 {
+                // B answers after its reaction delay; on the way both see it coming.
+                let delay_b = if p.brief { 0.25 * p.delay } else { p.delay };
+                // When the hands start to rise and when they come down again.
+                let (t1, t_down) = if p.brief {
+                    // Raised on the way, together on arrival, held 0.1–0.8 s.
+                    let t1 = t_arrive - 0.6;
+                    (t1, t1 + 0.6 + 0.1 + 0.7 * self.r[2])
+                } else {
+                    let t1 = t_arrive + 0.2;
+                    (t1, t1 + 1.9 + 0.4 * self.r[2])
+                };
+                if p.brief {
+                    // Both step back at once as the hands come down, to 1.1–1.8 m apart.
+                    let t_back = match self.kind {
+                        Interaction::Handover => t_down.max(t1 + delay_b + 1.6),
+                        _ => t_down,
+                    } - 0.1
+                        + 0.3 * self.r[6];
+                    let back = ((1.1 + 0.7 * self.r[4]) - meet).max(0.1) / 2.0;
+                    let v_back = 0.5 + 0.4 * self.r[5];
+                    let (x, v, _) = smooth_walk(back, v_back, 1.0, t - t_back);
+                    xa -= x;
+                    xb += x;
+                    gait = gait.max(v / v_back);
+                } else if p.locomotion && self.r[6] < 0.6 {
                     // After the exchange, most step back to a social distance.
                     let t_end = t_arrive + 0.2 + 1.9 + 0.4 * self.r[2] + 0.6;
                     let back = 0.2 + 0.4 * self.r[4];
@@ -296,14 +325,13 @@ impl Scene {
                 };
                 // Same-side hands of people facing each other meet between their shoulders.
                 let m = Vector3::new((xa + xb) / 2.0, lateral, height);
-                let t1 = t_arrive + 0.2;
-                let ta = pulse(t, t1, t1 + 1.9 + 0.4 * self.r[2], 0.6);
-                let tb = pulse(t, t1 + p.delay, t1 + 1.9 + 0.4 * self.r[2], 0.6);
+                let ta = pulse(t, t1, t_down, 0.6);
+                let tb = pulse(t, t1 + delay_b, t_down, 0.6);
                 let shake = if self.kind == Interaction::Handshake {
                     0.035
                         * amp
                         * (2.0 * PI * 2.5 * t).sin()
-                        * ramp(t, t1 + p.delay + 0.6, t1 + p.delay + 0.8)
+                        * ramp(t, t1 + delay_b + 0.6, t1 + delay_b + 0.8)
                 } else {
                     0.0
                 };
@@ -318,10 +346,10 @@ impl Scene {
                 let mut hand_b = lerp(&down_b, &rest_b, tb);
                 if self.kind == Interaction::Handover {
                     // The receiver takes the object, the giver lets go first.
-                    let give_back = ramp(t, t1 + p.delay + 1.0, t1 + p.delay + 1.6);
+                    let give_back = ramp(t, t1 + delay_b + 1.0, t1 + delay_b + 1.6);
                     let keep = Vector3::new(0.3, 0.0, -0.25);
                     hand_b = lerp(&lerp(&down_b, &rest_b, tb.max(give_back)), &keep, give_back);
-                    hand_a = lerp(&down_a, &rest_a, pulse(t, t1, t1 + p.delay + 0.9, 0.6));
+                    hand_a = lerp(&down_a, &rest_a, pulse(t, t1, t1 + delay_b + 0.9, 0.6));
                 }
                 set_hand(&mut a, hand_right, hand_a);
                 set_hand(&mut b, hand_right, hand_b);
@@ -714,6 +742,20 @@ pub fn generate_walking_split(
     )
 }
 
+/// Generate greeting clips `range` of a split ([`Split::greeting_clip`]).
+pub fn generate_greeting_split(
+    split: Split,
+    range: std::ops::Range<u64>,
+    threads: usize,
+    progress: &(dyn Fn() + Sync),
+) -> Vec<Clip> {
+    generate_params(
+        range.map(|i| split.greeting_clip(i)).collect(),
+        threads,
+        progress,
+    )
+}
+
 /// Generate clips `range` of a split on `threads` threads, calling `progress` after each clip.
 pub fn generate_split(
     split: Split,
@@ -881,5 +923,56 @@ mod walking_tests {
         assert!(swing > 0.1, "wrist swing {swing} m peak to peak");
         // The original splits are untouched.
         assert!(!Split::Test.clip(3).locomotion);
+    }
+
+    /// Separation of the two pelvises at frame `f`, metres (ground plane).
+    fn separation(c: &Clip, f: usize) -> f64 {
+        let (a, b) = (c.joints(f, 0)[0], c.joints(f, 1)[0]);
+        ((a - b).xy()).norm()
+    }
+
+    #[test]
+    fn greeting_clips_meet_briefly_and_step_back() {
+        let clips = generate_greeting_split(Split::Test, 0..9, 2, &|| {});
+        for c in &clips {
+            assert!(c.params.locomotion && c.params.brief);
+            assert!(GREETING_KINDS.contains(&c.params.kind));
+            let n = c.frames.len();
+            let (closest, at) = (0..n)
+                .map(|f| (separation(c, f), f))
+                .fold((f64::MAX, 0), |m, x| if x.0 < m.0 { x } else { m });
+            assert!(
+                closest < 1.3,
+                "{:?}: they meet ({closest} m)",
+                c.params.kind
+            );
+            // Stepped back within 2 s of the closest moment, to a social distance.
+            let later = separation(c, (at + 60).min(n - 1));
+            assert!(
+                later > closest + 0.08 && later < 2.0,
+                "{:?}: {closest} m, 2 s later {later} m",
+                c.params.kind
+            );
+            // The hands were together: wrists within 20 cm, from 0.5 s before the closest
+            // moment to 1 s after it (a handover's exchange comes later).
+            let wrist = |f: usize, p: usize| {
+                let j = c.joints(f, p);
+                [j[20], j[21]]
+            };
+            let near = (at.saturating_sub(15)..(at + 30).min(n))
+                .flat_map(|f| {
+                    let (a, b) = (wrist(f, 0), wrist(f, 1));
+                    [
+                        (a[0] - b[0]).norm(),
+                        (a[1] - b[1]).norm(),
+                        (a[0] - b[1]).norm(),
+                        (a[1] - b[0]).norm(),
+                    ]
+                })
+                .fold(f64::MAX, f64::min);
+            assert!(near < 0.2, "{:?}: hands {near} m apart", c.params.kind);
+        }
+        // The walking clips keep their long exchange.
+        assert!(!Split::Test.walking_clip(0).brief);
     }
 }
