@@ -5,9 +5,14 @@
 //! * Key names: a ROS topic `/ns/foo` is the Zenoh key `ns/foo` (no leading slash, no `rt/`).
 //! * Conversions from Echo's commands to `trajectory_msgs/JointTrajectory` per controller and
 //!   `geometry_msgs/Twist`, and from `sensor_msgs/JointState` to Echo's joint state.
+//! * The head camera's `sensor_msgs/Image` and `sensor_msgs/CameraInfo` ([`image`]).
 
 use cdr::{CdrLe, Infinite};
 use serde::{Deserialize, Serialize};
+
+mod bounded;
+pub mod image;
+pub use image::{RosCameraInfo, RosImage};
 
 /// builtin_interfaces/Time and Duration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -44,6 +49,7 @@ pub struct RosHeader {
     /// Stamp (0 = "start now" for trajectories).
     pub stamp: Time,
     /// Frame.
+    #[serde(deserialize_with = "bounded::string")]
     pub frame_id: String,
 }
 
@@ -53,6 +59,7 @@ pub struct RosJointState {
     /// Header.
     pub header: RosHeader,
     /// Names.
+    #[serde(deserialize_with = "bounded::strings")]
     pub name: Vec<String>,
     /// Positions.
     pub position: Vec<f64>,
@@ -83,6 +90,7 @@ pub struct RosJointTrajectory {
     /// Header.
     pub header: RosHeader,
     /// Joints.
+    #[serde(deserialize_with = "bounded::strings")]
     pub joint_names: Vec<String>,
     /// Points.
     pub points: Vec<RosTrajectoryPoint>,
@@ -125,6 +133,8 @@ pub fn encode<T: Serialize>(msg: &T) -> Result<Vec<u8>, CdrError> {
 }
 
 /// Decode CDR (either endianness, per the encapsulation header; trailing padding tolerated).
+/// Length fields are never trusted: strings and byte sequences are read through
+/// `bounded`, so a forged length is an error after at most the sample's own size.
 pub fn decode<T: for<'de> Deserialize<'de>>(bytes: &[u8]) -> Result<T, CdrError> {
     if bytes.len() > 16 << 20 {
         return Err(CdrError::Decode("sample over 16 MiB".into()));
