@@ -13,6 +13,7 @@ pub mod rotation;
 pub mod scripted;
 pub mod sensors;
 pub mod skeleton;
+pub mod splits;
 pub mod symmetry;
 pub mod synth;
 pub mod text;

@@ -1,6 +1,7 @@
-//! Synthetic two-person social interactions: deterministic by seed, with real dependency between
-//! the two people (the reactor answers after a reaction delay, hands meet where both can reach,
-//! the mirror copies with a lag, walkers avoid each other).
+//! Synthetic two-person social interactions, the choreography of one clip (whole splits:
+//! [`crate::splits`]): deterministic by seed, with real dependency between the two people (the
+//! reactor answers after a reaction delay, hands meet where both can reach, the mirror copies
+//! with a lag, walkers avoid each other).
 //!
 //! Person A (index 0) acts, person B (index 1) reacts. A starts at the origin facing +x, B in
 //! front of A facing A; the whole scene is then rotated and moved by a random placement.
@@ -14,6 +15,7 @@ use rand::{Rng, SeedableRng};
 pub use crate::params::{ClipParams, ParamRanges, Split, GREETING_KINDS, KINDS, WALKING_KINDS};
 use crate::posing::{arm_length, pose, to_arm_target, wrap, Intent};
 use crate::skeleton::{forward, j, Body, NUM_JOINTS};
+pub use crate::splits::{generate_greeting_split, generate_split, generate_walking_split};
 
 /// Frame rate of generated clips (the InterGen rate).
 pub const FPS: f64 = 30.0;
@@ -726,74 +728,6 @@ mod tests {
             assert!(p.delay >= tr.delay[0].1);
         }
     }
-}
-
-/// Generate walking clips `range` of a split ([`Split::walking_clip`]).
-pub fn generate_walking_split(
-    split: Split,
-    range: std::ops::Range<u64>,
-    threads: usize,
-    progress: &(dyn Fn() + Sync),
-) -> Vec<Clip> {
-    generate_params(
-        range.map(|i| split.walking_clip(i)).collect(),
-        threads,
-        progress,
-    )
-}
-
-/// Generate greeting clips `range` of a split ([`Split::greeting_clip`]).
-pub fn generate_greeting_split(
-    split: Split,
-    range: std::ops::Range<u64>,
-    threads: usize,
-    progress: &(dyn Fn() + Sync),
-) -> Vec<Clip> {
-    generate_params(
-        range.map(|i| split.greeting_clip(i)).collect(),
-        threads,
-        progress,
-    )
-}
-
-/// Generate clips `range` of a split on `threads` threads, calling `progress` after each clip.
-pub fn generate_split(
-    split: Split,
-    range: std::ops::Range<u64>,
-    threads: usize,
-    progress: &(dyn Fn() + Sync),
-) -> Vec<Clip> {
-    generate_params(range.map(|i| split.clip(i)).collect(), threads, progress)
-}
-
-fn generate_params(
-    ids: Vec<ClipParams>,
-    threads: usize,
-    progress: &(dyn Fn() + Sync),
-) -> Vec<Clip> {
-    let threads = threads.max(1);
-    let chunk = ids.len().div_ceil(threads).max(1);
-    let mut out: Vec<Vec<Clip>> = vec![];
-    std::thread::scope(|s| {
-        let handles: Vec<_> = ids
-            .chunks(chunk)
-            .map(|c| {
-                s.spawn(move || {
-                    c.iter()
-                        .map(|params| {
-                            let clip = generate(params);
-                            progress();
-                            clip
-                        })
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        for h in handles {
-            out.push(h.join().unwrap_or_default());
-        }
-    });
-    out.into_iter().flatten().collect()
 }
 
 #[cfg(test)]
