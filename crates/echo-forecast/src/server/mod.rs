@@ -1,5 +1,6 @@
 //! The forecaster's per-robot state and batched inference, with no network in sight: the
 //! service feeds it decoded messages and publishes what [`ForecastServer::run_batch`] returns.
+//! The batch's inputs are assembled in `batch`, the model's output decoded in `response`.
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -22,6 +23,10 @@ use crate::history::{
     ROBOT_STATE,
 };
 use crate::proxy::RobotProxy;
+
+mod batch;
+mod response;
+use batch::Batch;
 use echo_models::robot_agent::{decode_robot, encode_robot, robot_joint_names, ROBOT_FEATURES};
 use echo_msgs::{ControlMode, PlanPoint, RobotPlan};
 
@@ -430,48 +435,13 @@ impl ForecastServer {
             true => group.len(),
             false => 1,
         };
-        let mut robots = vec![];
-        let mut canon = vec![];
-        let mut obs = vec![];
-        let mut prompts: Vec<String> = vec![];
-        let mut measured = vec![];
-        for (name, slot) in self.slots.iter_mut() {
-            let Some(stamp) = slot.pending.take() else {
-                continue;
-            };
-            let Some(frames) = slot.history.last(cfg.obs) else {
-                continue;
-            };
-            let pairs: Vec<Vec<[Vector3<f64>; NUM_JOINTS]>> =
-                frames.iter().map(|p| p.pair.to_vec()).collect();
-            for g in &group[..copies] {
-                let seen: Vec<_> = pairs.iter().map(|p| g(p)).collect();
-                let (c, agents) = encode_frames(&seen);
-                for f in &agents[0] {
-                    obs.extend_from_slice(f);
-                }
-                if robot_agent {
-                    // The robot in its own base frame (the skeletons' frame): base at the origin.
-                    for f in &frames {
-                        obs.extend_from_slice(&encode_robot(&c, &f.robot, [0.0; 3]));
-                    }
-                } else {
-                    for f in &agents[1] {
-                        obs.extend_from_slice(f);
-                    }
-                }
-                canon.push(c);
-            }
-            measured.push(slot.robot_q);
-            prompts.push(slot.prompt.clone());
-            robots.push((
-                name.clone(),
-                stamp,
-                slot.pair.map(|p| p.0).unwrap_or(0),
-                slot.interaction,
-                slot.contact_arm,
-            ));
-        }
+        let Batch {
+            scenes: robots,
+            canon,
+            obs,
+            prompts,
+            measured,
+        } = self.assemble(&cfg, &group[..copies], robot_agent);
         if robots.is_empty() {
             return vec![];
         }
@@ -488,7 +458,7 @@ impl ForecastServer {
                     Err(err) => {
                         return robots
                             .into_iter()
-                            .map(|(r, ..)| (r, Err(ServeError::Prompt(err.to_string()))))
+                            .map(|s| (s.robot, Err(ServeError::Prompt(err.to_string()))))
                             .collect()
                     }
                 }
@@ -509,77 +479,39 @@ impl ForecastServer {
                 );
                 return robots
                     .into_iter()
-                    .map(|(r, ..)| (r, Err(ServeError::Model(msg.clone()))))
+                    .map(|s| (s.robot, Err(ServeError::Model(msg.clone()))))
                     .collect();
             }
             Err(e) => {
                 return robots
                     .into_iter()
-                    .map(|(r, ..)| (r, Err(ServeError::Model(e.to_string()))))
+                    .map(|s| (s.robot, Err(ServeError::Model(e.to_string()))))
                     .collect()
             }
         };
-        let per = cfg.pred * (fa + fb);
         let mut res = Vec::with_capacity(robots.len());
         let names = &self.robot_names;
-        for (i, (robot, stamp, partner, interaction, arm)) in robots.into_iter().enumerate() {
+        for (
+            i,
+            batch::Scene {
+                robot,
+                stamp,
+                partner,
+                interaction,
+                arm,
+            },
+        ) in robots.into_iter().enumerate()
+        {
             let c = &canon[i * copies];
-            let human: Vec<Vec<[f64; 3]>> = match copies {
-                1 => (0..cfg.pred)
-                    .map(|k| {
-                        let o = i * per + k * FEATURES;
-                        decode(c, &out[o..o + FEATURES])
-                            .iter()
-                            .map(|p| [p.x, p.y, p.z])
-                            .collect()
-                    })
-                    .collect(),
-                _ => (0..cfg.pred)
-                    .map(|k| {
-                        // Each copy's two forecast people, mapped back; person A's average.
-                        let mut sum = [Vector3::zeros(); NUM_JOINTS];
-                        for (gi, g) in group.iter().enumerate() {
-                            let n = i * copies + gi;
-                            let (oa, ob) = (n * per + k * fa, n * per + cfg.pred * fa + k * fb);
-                            let pair = [
-                                decode(&canon[n], &out[oa..oa + FEATURES]),
-                                decode(&canon[n], &out[ob..ob + FEATURES]),
-                            ];
-                            for (s, p) in sum.iter_mut().zip(g(&pair)[0]) {
-                                *s += p / copies as f64;
-                            }
-                        }
-                        sum.iter().map(|p| [p.x, p.y, p.z]).collect()
-                    })
-                    .collect(),
-            };
+            let human = response::people(&cfg, &out, &canon, &group[..copies], i);
             let mut header = Header::new(&robot, "", "base_footprint");
             header.stamp_ns = stamp;
             // A robot-agent model forecasts the robot too: its plan starts at the measured
             // joints and follows the forecast frames at the model rate.
             let mut plan = robot_agent.then(|| {
-                let mut points = vec![PlanPoint {
-                    t: 0.0,
-                    positions: measured[i].to_vec(),
-                    base: None,
-                }];
-                for k in 0..cfg.pred {
-                    let o = i * per + cfg.pred * fa + k * fb;
-                    let (q, _) = decode_robot(c, &out[o..o + fb]);
-                    points.push(PlanPoint {
-                        t: (k + 1) as f64 / self.cfg.rate_hz,
-                        positions: q,
-                        base: None,
-                    });
-                }
                 let mut h = Header::new(&robot, "forecaster", "odom");
                 h.stamp_ns = stamp;
-                RobotPlan {
-                    header: h,
-                    mode: ControlMode::Forecast,
-                    joint_names: names.clone(),
-                    points,
-                }
+                response::plan(&cfg, &out, c, i, &measured[i], h, names, self.cfg.rate_hz)
             });
             if let (Some(p), Some(reach), Some(wave), Some(kind)) =
                 (&mut plan, &self.contact, &self.wave, interaction)
