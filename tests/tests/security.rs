@@ -2,7 +2,8 @@
 //! a host whose certificate is not from Echo's CA cannot connect, nor can a plain-TCP one; a host
 //! with a valid certificate but the wrong identity cannot publish robot commands, nor another
 //! service's status or liveliness token, and the router logs the attempt under the identity's
-//! name; the identities that own those keys can.
+//! name; the identities that own those keys can; the head camera's images reach the pose
+//! estimator from the robot interface only.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -440,6 +441,68 @@ async fn identities_publish_only_their_own_status_and_liveliness() -> anyhow::Re
         );
     }
     drop((forged_tokens, own_tokens));
+    assert!(h.is_running("router"));
+    Ok(())
+}
+
+/// The head camera through the router: zenoh-bridge-ros2dds (identity `robot-interface`)
+/// publishes it, the pose estimator (identity `perception`) receives it and publishes its own
+/// status; another identity can neither publish camera images nor the pose estimator's status.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_camera_reaches_the_pose_estimator_only_from_the_robot_interface() -> anyhow::Result<()>
+{
+    if openssl_missing() {
+        return Ok(());
+    }
+    let scratch = tempfile::tempdir()?;
+    let certs = scratch.path().join("certs");
+    make_certs(
+        &certs,
+        &["router", "perception", "robot-interface", "forecaster"],
+    )?;
+    let mut h = Harness::new(ROBOT, 0)?;
+    let port = secure_router(&mut h, &certs)?;
+    let robot = RobotId::new(ROBOT)?;
+    let image = format!("{ROBOT}{}", echo_ros2::image::HEAD_RGB_TOPIC);
+
+    let estimator = connect(&client(port, &certs, "perception", true), "pose-estimator").await?;
+    let (images, _isub) = recorder(&estimator, &image).await?;
+    let ros_bridge = connect(&client(port, &certs, "robot-interface", true), "mock-robot").await?;
+    let (statuses, _ssub) = recorder(&ros_bridge, &keys::service_status_all(&robot)).await?;
+    let forecaster = connect(&client(port, &certs, "forecaster", true), "forecaster").await?;
+    let status = keys::service_status(&robot, "pose-estimator");
+    let arrived =
+        |got: &Received, payload: &str| got.lock().unwrap().iter().any(|(_, p)| p == payload);
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(10);
+    while !(arrived(&images, "from the camera") && arrived(&statuses, "from the pose estimator"))
+        && tokio::time::Instant::now() < deadline
+    {
+        put(&ros_bridge, &image, "from the camera").await?;
+        put(&estimator, &status, "from the pose estimator").await?;
+        put(&forecaster, &image, "forged by forecaster").await?;
+        put(&forecaster, &status, "forged by forecaster").await?;
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    assert!(
+        arrived(&images, "from the camera"),
+        "the camera did not reach the pose estimator"
+    );
+    assert!(
+        arrived(&statuses, "from the pose estimator"),
+        "the pose estimator's status did not arrive"
+    );
+    for got in [&images, &statuses] {
+        assert!(
+            !arrived(got, "forged by forecaster"),
+            "forged samples delivered: {:?}",
+            got.lock().unwrap()
+        );
+    }
+    let log = std::fs::read_to_string(h.log_dir().join("router.log"))?;
+    assert!(
+        denial_logged(&log, "forecaster", &format!("Put (ingress) on {image}")),
+        "router log:\n{log}"
+    );
     assert!(h.is_running("router"));
     Ok(())
 }

@@ -61,7 +61,7 @@ pub struct Args {
     #[arg(long, default_value = echo_ros2::image::HEAD_DEPTH_TOPIC)]
     pub depth_topic: String,
     /// Read images from this folder instead of the camera (PNG, JPEG; name order).
-    #[arg(long, conflicts_with = "ros2_namespace")]
+    #[arg(long)]
     pub images: Option<PathBuf>,
     /// With --images: frames per second.
     #[arg(long, default_value_t = 10.0)]
