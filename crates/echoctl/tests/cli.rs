@@ -51,6 +51,26 @@ fn bad_values_are_named() {
 }
 
 #[test]
+fn demo_from_pictures_needs_a_folder_of_them_and_no_scenario() {
+    let err = |out: &std::process::Output| String::from_utf8_lossy(&out.stderr).into_owned();
+    let out = echoctl(&["demo", "--camera", "/nonexistent/pictures"]);
+    assert!(!out.status.success());
+    assert!(
+        err(&out).contains("--camera /nonexistent/pictures"),
+        "{}",
+        err(&out)
+    );
+    let empty = tempfile::tempdir().unwrap();
+    let dir = empty.path().to_str().unwrap();
+    let out = echoctl(&["demo", "--camera", dir]);
+    assert!(!out.status.success());
+    assert!(err(&out).contains("no PNG or JPEG images"), "{}", err(&out));
+    let out = echoctl(&["demo", "--camera", dir, "--scenario", "wave"]);
+    assert!(!out.status.success());
+    assert!(err(&out).contains("cannot be used with"), "{}", err(&out));
+}
+
+#[test]
 fn data_and_eval_verbs_work_end_to_end() {
     let scratch = tempfile::tempdir().unwrap();
     let dir = scratch.path().to_path_buf();

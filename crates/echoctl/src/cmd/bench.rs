@@ -6,6 +6,8 @@
 //!   ONNX Runtime (prompt embeddings cached, as in the service).
 //! * `bus`: round trip of a skeleton-sized message between two Zenoh peer sessions over TCP on
 //!   loopback (A publishes, B echoes on another key, A times the return).
+//! * `camera`: the pose estimator's stages at the TIAGo++ head camera's 640 × 480, with 1 and 2
+//!   ONNX Runtime threads, and the bridge's step from its keypoints to a skeleton.
 
 use std::time::{Duration, Instant};
 
@@ -49,6 +51,10 @@ pub struct Args {
     /// `forecaster` with `--d-model`: self-attention layers.
     #[arg(long, default_value_t = 1)]
     pub self_layers: usize,
+    /// `camera`: the photograph of a person, scaled into the frame (default: `camera.png` from
+    /// the fetched photos, `.cache/photos`).
+    #[arg(long)]
+    pub photo: Option<std::path::PathBuf>,
 }
 
 /// The benchmarks.
@@ -64,6 +70,8 @@ pub enum Bench {
     Bus,
     /// The whole pipeline as processes, per number of robots.
     E2e,
+    /// The pose estimator's stages on a 640 × 480 camera image.
+    Camera,
 }
 
 /// Run the chosen benchmark and print a one-line summary per case.
@@ -86,6 +94,7 @@ pub async fn run(args: Args) -> Result<()> {
             None => forecaster(&args.model, args.samples),
         },
         Bench::E2e => e2e(&args).await,
+        Bench::Camera => super::bench_camera::run(args.samples, args.photo.as_deref()),
     }
 }
 
@@ -132,7 +141,8 @@ async fn e2e(args: &Args) -> Result<()> {
     Ok(())
 }
 
-fn report(name: &str, mut v: Vec<f64>) {
+/// One line: count, median, p99 and max of `v` (milliseconds).
+pub(crate) fn report(name: &str, mut v: Vec<f64>) {
     v.sort_by(f64::total_cmp);
     println!(
         "{name:<40} n={:<6} median {:8.3} ms   p99 {:8.3} ms   max {:8.3} ms",

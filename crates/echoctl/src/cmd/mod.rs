@@ -1,6 +1,7 @@
 //! One module per `echoctl` verb.
 
 pub mod bench;
+pub mod bench_camera;
 pub mod data;
 pub mod demo;
 pub mod eval;

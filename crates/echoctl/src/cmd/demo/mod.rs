@@ -9,6 +9,11 @@
 //! did ([`mission`]). `--scenario watch` runs the human–human forecaster on the scripted partner
 //! (the robot only watches), `--scenario imitation` the retargeter's mirroring.
 //!
+//! `--camera DIR` runs the pipeline from pictures instead (profile `camera`): the pose
+//! estimator reads the folder's images, looped, in place of the mock perception. Nothing is
+//! scripted, so no interaction is announced or scored; the summary says how often the bridge
+//! tracked someone.
+//!
 //! Services whose binaries are not installed next to `echoctl` are absent from the demo.
 
 mod mission;
@@ -70,6 +75,15 @@ pub struct Args {
     /// Add a bystander to the scene.
     #[arg(long)]
     pub bystander: bool,
+    /// Run the pipeline on the pictures in this folder (PNG, JPEG; looped) through the pose
+    /// estimator instead of the scripted partner: profile `camera` unless --profile names
+    /// another; no interaction is scripted or scored.
+    #[arg(
+        long,
+        value_name = "DIR",
+        conflicts_with_all = ["scenario", "capture", "bystander", "format"]
+    )]
+    pub camera: Option<PathBuf>,
     /// Directory for the services' logs (default: a fresh temporary directory).
     #[arg(long)]
     pub log_dir: Option<PathBuf>,
@@ -101,6 +115,7 @@ const IN_PROCESS: &[&str] = &[
     "retargeter",
     "safety",
     "mock-perception",
+    "pose-estimator",
 ];
 
 /// A profile's service, ready to start: its spec and its arguments with the scenario's values.
@@ -121,6 +136,8 @@ struct Observed {
     keys: BTreeMap<String, KeyStats>,
     status: BTreeMap<String, ServiceStatus>,
     partner_frames: u64,
+    /// Skeleton frames with at least one tracked person.
+    tracked_frames: u64,
     human_frames: u64,
     safety: Option<String>,
     forecasts: ForecastScore,
@@ -146,7 +163,11 @@ pub async fn run(args: Args) -> Result<()> {
         .ok_or_else(|| anyhow!("cannot locate the echoctl binary's directory"))?;
     let setup = Setup::from_args(&args)?;
     let deploy = echo_assets::deploy_dir(&args.deploy_dir);
-    let profile = Profile::load(&args.profile, &deploy)?;
+    let profile_name = match (&setup.camera, args.profile.as_str()) {
+        (Some(_), "demo") => "camera",
+        (_, name) => name,
+    };
+    let profile = Profile::load(profile_name, &deploy)?;
     let vars = setup.vars(&args);
     let mut available = vec![];
     let mut absent = vec![];
@@ -198,6 +219,13 @@ pub async fn run(args: Args) -> Result<()> {
         );
     }
     println!("logs: {}", log_dir.display());
+    if let Some(c) = &setup.camera {
+        println!(
+            "camera: {} image(s) from {}, looped; nothing is scripted, so no interaction is scored",
+            c.images,
+            c.dir.display()
+        );
+    }
     if let Some(m) = &setup.mission {
         println!(
             "scenario '{}' ({:.0} s): {}",
@@ -383,11 +411,14 @@ pub async fn run(args: Args) -> Result<()> {
     if let Some(f) = failure {
         anyhow::bail!("{f} (logs in {})", log_dir.display());
     }
-    if names.contains(&"perception-bridge")
-        && summary["humans"]["partner_frames"].as_u64() == Some(0)
-    {
+    // Pictures need not show someone facing the robot: there a tracked person is the result.
+    let (frames, what) = match setup.camera {
+        Some(_) => ("tracked_frames", "tracked anyone in the pictures"),
+        None => ("partner_frames", "reported a partner"),
+    };
+    if names.contains(&"perception-bridge") && summary["humans"][frames].as_u64() == Some(0) {
         anyhow::bail!(
-            "the perception bridge never reported a partner (logs in {})",
+            "the perception bridge never {what} (logs in {})",
             log_dir.display()
         );
     }
@@ -445,6 +476,16 @@ struct Setup {
     /// Mission time 0 (ns since the UNIX epoch): a few seconds ahead, so the services are up
     /// before the partner moves.
     t0_ns: u64,
+    /// `--camera`: the pictures the pose estimator reads.
+    camera: Option<Pictures>,
+}
+
+/// A folder of pictures for the pose estimator.
+struct Pictures {
+    /// The folder, absolute (the services may run elsewhere).
+    dir: PathBuf,
+    /// How many images it holds.
+    images: usize,
 }
 
 /// Seconds between launching the services and the partner's first move.
@@ -453,6 +494,17 @@ const LEAD_IN_S: f64 = 4.0;
 impl Setup {
     fn from_args(args: &Args) -> Result<Setup> {
         let t0_ns = now_ns() + (LEAD_IN_S * 1e9) as u64;
+        if let Some(dir) = &args.camera {
+            let dir = std::fs::canonicalize(dir)
+                .with_context(|| format!("--camera {}", dir.display()))?;
+            let images = pose_estimator::image_files(&dir)?.len();
+            return Ok(Setup {
+                mission: None,
+                imitation: false,
+                t0_ns,
+                camera: Some(Pictures { dir, images }),
+            });
+        }
         let (mission, imitation) = match (args.scenario.as_str(), &args.capture) {
             (_, Some(files)) => (
                 mock_perception::mission_of(None, Some(files), &args.capture_prompt)?,
@@ -472,10 +524,11 @@ impl Setup {
             mission,
             imitation,
             t0_ns,
+            camera: None,
         })
     }
 
-    /// The values of the demo profile's placeholders for this run.
+    /// The values of the demo profiles' placeholders for this run.
     fn vars(&self, args: &Args) -> Vars {
         let human_robot = self.mission.is_some();
         let scenario = match (&args.capture, human_robot) {
@@ -512,6 +565,13 @@ impl Setup {
             )
             .set_all("scenario", scenario)
             .set_all("t0", t0)
+            .set_all(
+                "images",
+                self.camera
+                    .iter()
+                    .map(|c| c.dir.display().to_string())
+                    .collect(),
+            )
     }
 }
 
@@ -552,6 +612,10 @@ fn start_task(name: &str, net: &BusArgs, flags: Vec<String>) -> Result<Task> {
         "retargeter" => {
             let a = Wrap::<retargeter::Args>::try_parse_from(&argv)?.inner;
             tokio::spawn(retargeter::serve(a, stop))
+        }
+        "pose-estimator" => {
+            let a = Wrap::<pose_estimator::Args>::try_parse_from(&argv)?.inner;
+            tokio::spawn(pose_estimator::serve(a, stop))
         }
         other => anyhow::bail!("{other} cannot run in-process"),
     };
@@ -630,6 +694,9 @@ async fn subscribe_all(
                 }
                 o.forecasts.on_humans(h);
                 o.human_frames += 1;
+                if !h.tracks.is_empty() {
+                    o.tracked_frames += 1;
+                }
                 if h.partner_id.is_some() {
                     o.partner_frames += 1;
                 }
@@ -743,7 +810,11 @@ fn summary(o: &Observed, elapsed: f64) -> serde_json::Value {
         "interactions": interactions,
         "keys": keys_json,
         "services": services,
-        "humans": { "frames": o.human_frames, "partner_frames": o.partner_frames },
+        "humans": {
+            "frames": o.human_frames,
+            "tracked_frames": o.tracked_frames,
+            "partner_frames": o.partner_frames,
+        },
         "safety_state": o.safety,
         "rejected_total": rejected,
         "dropped_total": dropped,
@@ -821,7 +892,9 @@ fn render_summary(s: &serde_json::Value) -> String {
         out.push_str(&format!("safety: final state {st}\n"));
     }
     out.push_str(&format!(
-        "partner seen in {} of {} skeleton frames; {} inputs rejected, {} dropped in total",
+        "someone tracked in {}, a partner in {} of {} skeleton frames; {} inputs rejected, {} \
+         dropped in total",
+        s["humans"]["tracked_frames"],
         s["humans"]["partner_frames"],
         s["humans"]["frames"],
         s["rejected_total"],
