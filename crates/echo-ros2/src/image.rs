@@ -1,15 +1,15 @@
 //! `sensor_msgs/Image` and `sensor_msgs/CameraInfo`: the head camera's colour and depth
-//! streams, checked and converted into plain buffers (RGB bytes, depth in millimetres).
+//! streams in CDR, the calibration's intrinsics, and depth as millimetres (colour pixels are
+//! read in place by `echo_pose::Image`, which checks their encoding, step and size).
 //!
-//! Rules: colour `rgb8`, `bgr8`, `rgba8`, `bgra8` and `mono8`; depth `16UC1` (millimetres, 0 =
-//! no reading) and `32FC1` (metres, NaN/∞/≤ 0 = no reading; beyond 65.535 m saturates to no
+//! Depth rules: `16UC1` (millimetres, 0 = no reading) and `32FC1` (metres, NaN/∞/≤ 0 = no reading; beyond 65.535 m saturates to no
 //! reading). `step` may pad rows but never be shorter than a row; `data` must hold exactly
 //! `step · height` bytes; images larger than [`MAX_SIDE`] on a side are refused. Big-endian
 //! depth (`is_bigendian = 1`) is read as such.
 
 use serde::{Deserialize, Serialize};
 
-use crate::{RosHeader, Time};
+use crate::RosHeader;
 
 /// Largest accepted image side, pixels.
 pub const MAX_SIDE: u32 = 8192;
@@ -125,17 +125,6 @@ pub enum ImageError {
     Calibration(String),
 }
 
-/// A colour image as packed RGB bytes.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Rgb8 {
-    /// Columns.
-    pub width: u32,
-    /// Rows.
-    pub height: u32,
-    /// `width · height · 3` bytes, row-major.
-    pub data: Vec<u8>,
-}
-
 /// A depth image in millimetres (0 = no reading), row-major.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DepthMm {
@@ -146,9 +135,6 @@ pub struct DepthMm {
     /// `width · height` values.
     pub data: Vec<u16>,
 }
-
-/// One pixel's bytes to RGB.
-type PixelToRgb = fn(&[u8]) -> [u8; 3];
 
 impl RosImage {
     /// Check size, step and data length for `bytes_per_pixel`; the rows as slices.
@@ -175,29 +161,6 @@ impl RosImage {
         }
         let (step, row) = (self.step as usize, row as usize);
         Ok(self.data.chunks_exact(step).map(move |r| &r[..row]))
-    }
-
-    /// The image as packed RGB.
-    pub fn to_rgb8(&self) -> Result<Rgb8, ImageError> {
-        let (bpp, order): (u64, PixelToRgb) = match self.encoding.as_str() {
-            "rgb8" => (3, |p| [p[0], p[1], p[2]]),
-            "bgr8" => (3, |p| [p[2], p[1], p[0]]),
-            "rgba8" => (4, |p| [p[0], p[1], p[2]]),
-            "bgra8" => (4, |p| [p[2], p[1], p[0]]),
-            "mono8" => (1, |p| [p[0], p[0], p[0]]),
-            e => return Err(ImageError::Encoding(e.to_string())),
-        };
-        let mut data = Vec::with_capacity(self.width as usize * self.height as usize * 3);
-        for r in self.rows(bpp)? {
-            for p in r.chunks_exact(bpp as usize) {
-                data.extend_from_slice(&order(p));
-            }
-        }
-        Ok(Rgb8 {
-            width: self.width,
-            height: self.height,
-            data,
-        })
     }
 
     /// The image as depth in millimetres.
@@ -246,13 +209,8 @@ impl RosImage {
 
     /// Capture time, ns since the epoch.
     pub fn stamp_ns(&self) -> u64 {
-        stamp_ns(self.header.stamp)
+        self.header.stamp.to_ns()
     }
-}
-
-/// A ROS time as nanoseconds since the epoch (negative seconds clamp to 0).
-pub fn stamp_ns(t: Time) -> u64 {
-    t.sec.max(0) as u64 * 1_000_000_000 + t.nanosec as u64
 }
 
 impl RosCameraInfo {
@@ -291,7 +249,7 @@ impl RosCameraInfo {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{decode, encode};
+    use crate::{decode, encode, Time};
 
     fn image(encoding: &str, w: u32, h: u32, step: u32, data: Vec<u8>) -> RosImage {
         RosImage {
@@ -362,40 +320,34 @@ mod tests {
     }
 
     #[test]
-    fn colour_encodings_become_rgb_and_row_padding_is_skipped() {
-        // 2×2 bgr8 with rows padded to 8 bytes.
-        let data = vec![1, 2, 3, 4, 5, 6, 0, 0, 7, 8, 9, 10, 11, 12, 0, 0];
-        let rgb = image("bgr8", 2, 2, 8, data).to_rgb8().unwrap();
-        assert_eq!(rgb.data, vec![3, 2, 1, 6, 5, 4, 9, 8, 7, 12, 11, 10]);
-        let mono = image("mono8", 2, 1, 2, vec![5, 9]).to_rgb8().unwrap();
-        assert_eq!(mono.data, vec![5, 5, 5, 9, 9, 9]);
-        let rgba = image("rgba8", 1, 1, 4, vec![1, 2, 3, 255])
-            .to_rgb8()
-            .unwrap();
-        assert_eq!(rgba.data, vec![1, 2, 3]);
+    fn depth_row_padding_is_skipped() {
+        // 2×2 16UC1 with rows padded to 6 bytes.
+        let data = vec![1, 0, 2, 0, 9, 9, 3, 0, 4, 0, 9, 9];
+        let d = image("16UC1", 2, 2, 6, data).to_depth_mm().unwrap();
+        assert_eq!(d.data, vec![1, 2, 3, 4]);
     }
 
     #[test]
     fn bad_images_are_named() {
-        let e = |img: RosImage| img.to_rgb8().unwrap_err();
+        let e = |img: RosImage| img.to_depth_mm().unwrap_err();
         assert!(matches!(
             e(image("yuv422", 2, 2, 4, vec![0; 8])),
             ImageError::Encoding(_)
         ));
         assert!(matches!(
-            e(image("rgb8", 0, 2, 0, vec![])),
+            e(image("16UC1", 0, 2, 0, vec![])),
             ImageError::Size { .. }
         ));
         assert!(matches!(
-            e(image("rgb8", 9000, 1, 27000, vec![0; 27000])),
+            e(image("16UC1", 9000, 1, 18000, vec![0; 18000])),
             ImageError::Size { .. }
         ));
         assert!(matches!(
-            e(image("rgb8", 2, 2, 5, vec![0; 10])),
+            e(image("16UC1", 2, 2, 3, vec![0; 6])),
             ImageError::Step { .. }
         ));
         assert!(matches!(
-            e(image("rgb8", 2, 2, 6, vec![0; 11])),
+            e(image("16UC1", 2, 2, 4, vec![0; 7])),
             ImageError::Truncated { .. }
         ));
         assert!(matches!(

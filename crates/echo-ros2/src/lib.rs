@@ -34,6 +34,11 @@ impl Time {
         }
     }
 
+    /// Nanoseconds since the epoch (negative seconds clamp to 0).
+    pub fn to_ns(self) -> u64 {
+        self.sec.max(0) as u64 * 1_000_000_000 + self.nanosec as u64
+    }
+
     /// From nanoseconds since the epoch.
     pub fn from_ns(ns: u64) -> Time {
         Time {
@@ -216,8 +221,7 @@ pub fn joint_state(
     source: &str,
 ) -> Result<echo_msgs::JointState, echo_msgs::ValidationError> {
     let mut header = echo_msgs::Header::new(robot_id, source, &js.header.frame_id);
-    header.stamp_ns =
-        js.header.stamp.sec.max(0) as u64 * 1_000_000_000 + js.header.stamp.nanosec as u64;
+    header.stamp_ns = js.header.stamp.to_ns();
     let msg = echo_msgs::JointState {
         header,
         name: js.name.clone(),
