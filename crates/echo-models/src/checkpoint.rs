@@ -9,8 +9,7 @@ use echo_text::SentenceEncoder;
 use serde::{Deserialize, Serialize};
 
 use crate::model::{Forecaster, ForecasterConfig};
-use crate::predictor::ModelPredictor;
-use crate::train::TrainConfig;
+use crate::train_config::TrainConfig;
 
 /// What is stored next to the weights.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -107,8 +106,8 @@ impl Checkpoint {
         })
     }
 
-    /// A predictor over this checkpoint.
-    pub fn predictor(&self, name: &str) -> ModelPredictor<'_> {
-        ModelPredictor::new(&self.model, self.dev.clone(), name, self.text.as_ref())
+    /// The device its tensors live on.
+    pub fn device(&self) -> &Device {
+        &self.dev
     }
 }

@@ -5,8 +5,8 @@
 //! the agent's pelvis, in the agent's heading frame: 66 values), root position (3) and heading
 //! quaternion (a yaw, 4) — the paper's [local pose, root xyz + quaternion], 73 values.
 
-use echo_eval::metrics::Frame;
 use echo_motion::skeleton::{heading, NUM_JOINTS};
+use echo_motion::symmetry::Body;
 use nalgebra::{UnitQuaternion, Vector3};
 
 /// Values per agent and frame.
@@ -100,30 +100,13 @@ pub fn decode(c: &Canonical, f: &[f32]) -> [Vector3<f64>; NUM_JOINTS] {
 
 /// Features of a window's observed frames for both agents: `[agent][frame][feature]`, and the
 /// canonical frame used.
-pub fn encode_frames(frames: &[Frame]) -> (Canonical, Vec<Vec<[f32; FEATURES]>>) {
+pub fn encode_frames(frames: &[Vec<Body>]) -> (Canonical, Vec<Vec<[f32; FEATURES]>>) {
     let last = &frames[frames.len() - 1];
     let c = Canonical::of(&last[0]);
     let agents = (0..2)
         .map(|a| frames.iter().map(|f| encode(&c, &f[a])).collect())
         .collect();
     (c, agents)
-}
-
-/// Observed features of windows in the backends' layout (per window: A's frames, then B's),
-/// using each window's last `obs` frames, and the window frames used.
-pub fn encode_observed(ws: &[&echo_eval::Window], obs: usize) -> (Vec<Canonical>, Vec<f32>) {
-    let mut canon = Vec::with_capacity(ws.len());
-    let mut data = Vec::with_capacity(ws.len() * 2 * obs * FEATURES);
-    for w in ws {
-        let (c, agents) = encode_frames(&w.obs[w.obs.len() - obs..]);
-        for a in &agents {
-            for f in a {
-                data.extend_from_slice(f);
-            }
-        }
-        canon.push(c);
-    }
-    (canon, data)
 }
 
 #[cfg(test)]

@@ -32,7 +32,7 @@ fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("forecaster");
     for b in [1usize, 16] {
         let ws: Vec<&echo_eval::Window> = windows.iter().cycle().take(b).collect();
-        let (_, obs) = echo_models::features::encode_observed(&ws, cfg.obs);
+        let (_, obs) = echo_train::encode_observed(&ws, cfg.obs);
         let text: Vec<f32> = (0..b).flat_map(|_| emb.iter().copied()).collect();
         for be in backends.iter_mut() {
             let name = be.name();

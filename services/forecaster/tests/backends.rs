@@ -68,7 +68,7 @@ fn candle_onnx_and_zero_velocity_backends_agree_on_shapes_and_values() {
     let clip = echo_motion::synth::generate(&echo_motion::synth::Split::Test.clip(0));
     let w = echo_eval::window::windows(&clip, 8);
     let refs: Vec<&echo_eval::Window> = w.iter().take(3).collect();
-    let (_, obs) = echo_models::features::encode_observed(&refs, cfg.obs);
+    let (_, obs) = echo_train::encode_observed(&refs, cfg.obs);
     let emb = text
         .expect("the shipped model reads text")
         .embed_one(&clip.texts[0])

@@ -223,7 +223,7 @@ fn forecaster(stem: &std::path::Path, samples: usize) -> Result<()> {
         .collect();
     for b in [1usize, 16] {
         let ws: Vec<&echo_eval::Window> = windows.iter().cycle().take(b).collect();
-        let (_, obs) = echo_models::features::encode_observed(&ws, cfg.obs);
+        let (_, obs) = echo_train::encode_observed(&ws, cfg.obs);
         let text: Vec<f32> = (0..b).flat_map(|_| emb.iter().copied()).collect();
         for be in backends.iter_mut() {
             for _ in 0..10 {

@@ -9,6 +9,7 @@ use echo_eval::Predictor;
 use echo_motion::sensors::contact_and_proximity;
 use echo_motion::skeleton::{j, NUM_JOINTS, PARENTS};
 use echo_motion::synth::{generate_split, Clip, Split, FPS};
+use echo_train::CheckpointPredictor;
 use indicatif::{ProgressBar, ProgressStyle};
 
 /// Data verbs.

@@ -7,6 +7,7 @@ use echo_eval::harness::{markdown_per_kind, markdown_responder, markdown_table};
 use echo_eval::window::{windows, ConstantVelocity, ZeroVelocity};
 use echo_eval::{evaluate, Predictor, Report, Symmetrized};
 use echo_motion::synth::{generate_split, Split, KINDS};
+use echo_train::CheckpointPredictor;
 
 use super::data::progress;
 

@@ -8,9 +8,9 @@ use std::path::PathBuf;
 use anyhow::Result;
 use echo_eval::render::{chart, Curve, Panel};
 use echo_models::model::ForecasterConfig;
-use echo_models::train::{train, EpochLog, Progress, Run, TrainConfig};
 use echo_models::{Checkpoint, CheckpointMeta};
 use echo_text::SentenceEncoder;
+use echo_train::train::{train, EpochLog, Progress, Run, TrainConfig};
 
 use super::data::progress;
 

@@ -1,12 +1,41 @@
-//! The forecaster as an evaluation [`Predictor`].
+//! The forecaster as an evaluation [`Predictor`], and windows as the backends' input.
 
 use candle_core::{Device, Tensor};
 use echo_eval::metrics::Frame;
 use echo_eval::{Predictor, Window};
-
-use crate::features::{decode, encode_observed, FEATURES};
-use crate::model::Forecaster;
+use echo_models::features::{decode, encode_frames, Canonical, FEATURES};
+use echo_models::model::Forecaster;
+use echo_models::Checkpoint;
 use echo_text::SentenceEncoder;
+
+/// Observed features of windows in the backends' layout (per window: A's frames, then B's),
+/// using each window's last `obs` frames, and the window frames used.
+pub fn encode_observed(ws: &[&Window], obs: usize) -> (Vec<Canonical>, Vec<f32>) {
+    let mut canon = Vec::with_capacity(ws.len());
+    let mut data = Vec::with_capacity(ws.len() * 2 * obs * FEATURES);
+    for w in ws {
+        let (c, agents) = encode_frames(&w.obs[w.obs.len() - obs..]);
+        for a in &agents {
+            for f in a {
+                data.extend_from_slice(f);
+            }
+        }
+        canon.push(c);
+    }
+    (canon, data)
+}
+
+/// A checkpoint as an evaluation predictor.
+pub trait CheckpointPredictor {
+    /// A predictor over this checkpoint, named `name` in tables.
+    fn predictor(&self, name: &str) -> ModelPredictor<'_>;
+}
+
+impl CheckpointPredictor for Checkpoint {
+    fn predictor(&self, name: &str) -> ModelPredictor<'_> {
+        ModelPredictor::new(&self.model, self.device().clone(), name, self.text.as_ref())
+    }
+}
 
 /// A borrowed model that predicts windows in batches (a window's first description is its
 /// prompt when the model reads text).

@@ -9,6 +9,7 @@ use echo_eval::window::{windows, ConstantVelocity, ZeroVelocity};
 use echo_eval::{evaluate, HORIZONS_S};
 use echo_models::Checkpoint;
 use echo_motion::synth::{generate_split, Split, KINDS};
+use echo_train::CheckpointPredictor;
 
 /// Both shipped human–human forecasters: `forecaster` (real and synthetic data) and
 /// `forecaster-synthetic` (synthetic only, the model before real captures).
