@@ -85,7 +85,7 @@ impl Backend for CandleBackend {
         let xb = x
             .narrow(1, cfg.obs * fa, cfg.obs * fb)?
             .reshape((b, cfg.obs, fb))?;
-        let ([ya, yb], _) = self.ck.model.forward_pair(&xa, &xb, t.as_ref())?;
+        let [ya, yb] = self.ck.model.forward_social(&xa, &xb, t.as_ref())?;
         let y = Tensor::cat(&[ya.flatten_from(1)?, yb.flatten_from(1)?], 1)?;
         Ok(y.flatten_all()?.to_vec1::<f32>()?)
     }

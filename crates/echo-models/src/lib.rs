@@ -5,8 +5,10 @@
 pub mod backend;
 pub mod checkpoint;
 pub mod features;
+pub mod gelu;
 pub mod model;
 pub mod robot_agent;
+pub mod threads;
 pub mod train_config;
 
 pub use backend::{disagreement, Backend, CandleBackend, ZeroVelocityBackend, PARITY_TOLERANCE};

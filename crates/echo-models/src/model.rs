@@ -148,7 +148,7 @@ impl Mlp {
     }
 
     fn forward(&self, x: &Tensor) -> Result<Tensor> {
-        self.b.forward(&self.a.forward(x)?.gelu()?)
+        self.b.forward(&crate::gelu::gelu(&self.a.forward(x)?)?)
     }
 }
 
@@ -192,11 +192,12 @@ impl Attention {
         let split = |t: Tensor, n: usize| -> Result<Tensor> {
             t.reshape((b, n, h, dh))?.transpose(1, 2)?.contiguous()
         };
-        let q = split(self.q.forward(x)?, tq)?;
+        // The scale on q (t·dh values) rather than on the scores (t·t); kᵀ as a strided view
+        // (the matrix product reads it column-major, no copy).
+        let q = (split(self.q.forward(x)?, tq)? * (1.0 / (dh as f64).sqrt()))?;
         let k = split(self.k.forward(ctx)?, tk)?;
         let v = split(self.v.forward(ctx)?, tk)?;
-        let att = (q.matmul(&k.t()?.contiguous()?)? / (dh as f64).sqrt())?;
-        let att = candle_nn::ops::softmax_last_dim(&att)?;
+        let att = candle_nn::ops::softmax_last_dim(&q.matmul(&k.t()?)?)?;
         let y = att.matmul(&v)?.transpose(1, 2)?.reshape((b, tq, d))?;
         self.o.forward(&y)
     }
@@ -256,12 +257,14 @@ impl TempMlp {
         })
     }
 
+    /// `Linear_time` as `W x + b` over each window's (t, d) matrix: no transposes.
     fn forward(&self, x: &Tensor) -> Result<Tensor> {
-        let y = self
-            .time
-            .forward(&x.transpose(1, 2)?.contiguous()?)?
-            .transpose(1, 2)?
-            .contiguous()?;
+        let (b, t, _) = x.dims3()?;
+        let w = self.time.weight().broadcast_left(b)?;
+        let mut y = w.matmul(x)?;
+        if let Some(bias) = self.time.bias() {
+            y = y.broadcast_add(&bias.reshape((1, t, 1))?)?;
+        }
         x + self.ln.forward(&y)?
     }
 }
@@ -368,13 +371,22 @@ impl Forecaster {
     /// `obs`: (b, 2, obs, FEATURES) observed features; `text`: (b, text_dim), required when
     /// the model has a text token. Returns (b, 2, pred, FEATURES): the social (final) forecast.
     pub fn forward(&self, obs: &Tensor, text: Option<&Tensor>) -> Result<Tensor> {
-        Ok(self.forward_both(obs, text)?.0)
+        let (xa, xb) = self.split_agents(obs)?;
+        let [sa, sb] = self.forward_social(&xa, &xb, text)?;
+        Tensor::stack(&[sa, sb], 1)
     }
 
     /// The social forecast and the individual one (the self-intent features before any
     /// cross-attention, through the same decoder: what L_self supervises); both agents of the
     /// same size, stacked as (b, 2, pred, F).
     pub fn forward_both(&self, obs: &Tensor, text: Option<&Tensor>) -> Result<(Tensor, Tensor)> {
+        let (xa, xb) = self.split_agents(obs)?;
+        let ([sa, sb], [ia, ib]) = self.forward_pair(&xa, &xb, text)?;
+        Ok((Tensor::stack(&[sa, sb], 1)?, Tensor::stack(&[ia, ib], 1)?))
+    }
+
+    /// (b, 2, obs, F) → each agent's (b, obs, F), the shape checked.
+    fn split_agents(&self, obs: &Tensor) -> Result<(Tensor, Tensor)> {
         let (_, agents, n_obs, f) = obs.dims4()?;
         if agents != 2 || n_obs != self.cfg.obs || self.cfg.agent_features != [f, f] {
             candle_core::bail!(
@@ -384,20 +396,44 @@ impl Forecaster {
                 obs.dims()
             );
         }
-        let xa = obs.narrow(1, 0, 1)?.squeeze(1)?;
-        let xb = obs.narrow(1, 1, 1)?.squeeze(1)?;
-        let ([sa, sb], [ia, ib]) = self.forward_pair(&xa, &xb, text)?;
-        Ok((Tensor::stack(&[sa, sb], 1)?, Tensor::stack(&[ia, ib], 1)?))
+        Ok((
+            obs.narrow(1, 0, 1)?.squeeze(1)?,
+            obs.narrow(1, 1, 1)?.squeeze(1)?,
+        ))
     }
 
     /// Agents of any sizes: `xa` (b, obs, F_a), `xb` (b, obs, F_b) → social `[a, b]` and
-    /// individual `[a, b]` forecasts, (b, pred, F_i) each.
+    /// individual `[a, b]` forecasts, (b, pred, F_i) each (training: both are supervised).
     pub fn forward_pair(
         &self,
         xa: &Tensor,
         xb: &Tensor,
         text: Option<&Tensor>,
     ) -> Result<([Tensor; 2], [Tensor; 2])> {
+        let s = self.self_intent(xa, xb, text)?;
+        let (ha, hb) = self.social_intent(&s.h[0], &s.h[1])?;
+        Ok((
+            [s.decode(self, 0, &ha)?, s.decode(self, 1, &hb)?],
+            [s.decode(self, 0, &s.h[0])?, s.decode(self, 1, &s.h[1])?],
+        ))
+    }
+
+    /// The social forecast alone, `[a, b]`, (b, pred, F_i) each: what serving needs (the
+    /// individual forecast is not decoded).
+    pub fn forward_social(
+        &self,
+        xa: &Tensor,
+        xb: &Tensor,
+        text: Option<&Tensor>,
+    ) -> Result<[Tensor; 2]> {
+        let s = self.self_intent(xa, xb, text)?;
+        let (ha, hb) = self.social_intent(&s.h[0], &s.h[1])?;
+        Ok([s.decode(self, 0, &ha)?, s.decode(self, 1, &hb)?])
+    }
+
+    /// Embedding, positions, text token, then the self-intent layers. The self-attention and
+    /// temporal blocks are shared by both agents, so both run through them as one batch of 2b.
+    fn self_intent(&self, xa: &Tensor, xb: &Tensor, text: Option<&Tensor>) -> Result<SelfIntent> {
         let (b, n_obs, _) = xa.dims3()?;
         for (i, x) in [xa, xb].iter().enumerate() {
             let (bi, ni, fi) = x.dims3()?;
@@ -416,8 +452,8 @@ impl Forecaster {
             (None, _) => None,
         };
         let t = self.cfg.frames();
-        let mut agents = Vec::with_capacity(2);
-        let mut lasts = Vec::with_capacity(2);
+        let mut embedded = Vec::with_capacity(2);
+        let mut bases = Vec::with_capacity(2);
         for (a, x) in [xa, xb].iter().enumerate() {
             let f = x.dim(2)?;
             let last = x.narrow(1, n_obs - 1, 1)?; // (b, 1, f)
@@ -435,18 +471,11 @@ impl Forecaster {
             if let Some(tok) = &text {
                 h = Tensor::cat(&[tok.clone(), h], 1)?;
             }
-            for blk in &self.self_blocks {
-                h = blk.forward(&h, &h)?;
-            }
-            for tm in &self.temp {
-                h = tm.forward(&h)?;
-            }
-            agents.push(h);
+            embedded.push(h);
             // The base the displacement is added to: the last frame, plus the damped velocity.
             let base = if self.cfg.velocity_prior_s > 0.0 {
                 let prev = x.narrow(1, n_obs - 2, 1)?;
                 let v = (&last - &prev)?; // (b, 1, f)
-                let f = x.dim(2)?;
                 let g = Tensor::from_vec(
                     self.cfg.prior_gain_matrix(f),
                     (1, self.cfg.pred, f),
@@ -456,9 +485,29 @@ impl Forecaster {
             } else {
                 last
             };
-            lasts.push(base);
+            bases.push(base);
         }
-        let (mut ha, mut hb) = (agents[0].clone(), agents[1].clone());
+        let mut h = Tensor::cat(&embedded, 0)?; // (2b, T', d): A's windows, then B's
+        for blk in &self.self_blocks {
+            h = blk.forward(&h, &h)?;
+        }
+        for tm in &self.temp {
+            h = tm.forward(&h)?;
+        }
+        let [ba, bb]: [Tensor; 2] = bases
+            .try_into()
+            .map_err(|_| candle_core::Error::Msg("two agents".into()))?;
+        Ok(SelfIntent {
+            h: [h.narrow(0, 0, b)?, h.narrow(0, b, b)?],
+            bases: [ba, bb],
+            skip: usize::from(text.is_some()),
+            n_obs,
+        })
+    }
+
+    /// Rounds of cross-attention: each agent refined by the other.
+    fn social_intent(&self, ha: &Tensor, hb: &Tensor) -> Result<(Tensor, Tensor)> {
+        let (mut ha, mut hb) = (ha.clone(), hb.clone());
         if self.cfg.interleaved {
             for [ca, cb] in &self.cross {
                 ha = ca.forward(&ha, &hb)?;
@@ -472,26 +521,38 @@ impl Forecaster {
                 hb = cb.forward(&hb, &ha)?;
             }
         }
-        let skip = usize::from(text.is_some());
-        let decode = |a: usize, h: &Tensor| -> Result<Tensor> {
-            let y = match &self.dct {
-                // Decode every coefficient, back to time, keep the future frames.
-                Some(d) => d
-                    .t()?
-                    .broadcast_matmul(&self.decode[a].forward(&h.narrow(1, skip, t)?)?)?
-                    .narrow(1, n_obs, self.cfg.pred)?,
-                None => self.decode[a].forward(&h.narrow(1, skip + n_obs, self.cfg.pred)?)?,
-            };
-            if self.cfg.displacement {
-                y.broadcast_add(&lasts[a])
-            } else {
-                Ok(y)
-            }
+        Ok((ha, hb))
+    }
+}
+
+/// Each agent's self-intent features and what decoding needs.
+struct SelfIntent {
+    /// (b, T', d) per agent.
+    h: [Tensor; 2],
+    /// What the displacement is added to, (b, 1 or pred, F_i) per agent.
+    bases: [Tensor; 2],
+    /// Leading tokens before the frames (the text token).
+    skip: usize,
+    n_obs: usize,
+}
+
+impl SelfIntent {
+    /// Agent `a`'s features `h` → its forecast (b, pred, F_a).
+    fn decode(&self, m: &Forecaster, a: usize, h: &Tensor) -> Result<Tensor> {
+        let (t, pred) = (m.cfg.frames(), m.cfg.pred);
+        let y = match &m.dct {
+            // Decode every coefficient, back to time, keep the future frames.
+            Some(d) => d
+                .t()?
+                .broadcast_matmul(&m.decode[a].forward(&h.narrow(1, self.skip, t)?)?)?
+                .narrow(1, self.n_obs, pred)?,
+            None => m.decode[a].forward(&h.narrow(1, self.skip + self.n_obs, pred)?)?,
         };
-        Ok((
-            [decode(0, &ha)?, decode(1, &hb)?],
-            [decode(0, &agents[0])?, decode(1, &agents[1])?],
-        ))
+        if m.cfg.displacement {
+            y.broadcast_add(&self.bases[a])
+        } else {
+            Ok(y)
+        }
     }
 }
 

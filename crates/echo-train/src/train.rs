@@ -28,6 +28,40 @@ pub use echo_models::TrainConfig;
 use crate::optim::AdamW;
 use crate::predictor::ModelPredictor;
 
+/// One optimisation step on a batch (`obs` (b, 2, obs, F), `fut` (b, 2, pred, F), prompts
+/// (b, text_dim) when the model reads text): the weighted loss, backward, global-norm
+/// clipping to `t.clip_grad`, one AdamW update at the optimiser's current rate. Returns the
+/// loss before the update.
+pub fn train_step(
+    model: &Forecaster,
+    opt: &mut AdamW,
+    t: &TrainConfig,
+    obs: &Tensor,
+    fut: &Tensor,
+    text: Option<&Tensor>,
+) -> anyhow::Result<f64> {
+    let (soc, ind) = model.forward_both(obs, text)?;
+    let mut loss = (mse(&soc, fut)? * t.w_soc)?;
+    if t.w_self > 0.0 {
+        loss = (loss + (mse(&ind, fut)? * t.w_self)?)?;
+    }
+    if t.w_interaction > 0.0 {
+        loss = (loss + (interaction_loss(&soc, fut)? * t.w_interaction)?)?;
+    }
+    if t.w_bone > 0.0 {
+        loss = (loss + (bone_loss(&soc, fut)? * t.w_bone)?)?;
+    }
+    let grads = loss.backward()?;
+    let norm = opt.grad_norm(&grads)?;
+    let scale = if norm > t.clip_grad {
+        t.clip_grad / norm
+    } else {
+        1.0
+    };
+    opt.step(&grads, scale)?;
+    Ok(loss.to_scalar::<f32>()? as f64)
+}
+
 /// Prompt embeddings: every distinct description once.
 pub struct TextTable {
     dim: usize,
@@ -358,26 +392,7 @@ pub fn train(
                 t.lr * t.decay.powf(step as f64 / steps_per_epoch as f64)
             };
             let (obs, fut, txt) = data.batch(idx, table.as_ref(), &mut rng, dev)?;
-            let (soc, ind) = model.forward_both(&obs, txt.as_ref())?;
-            let mut loss = (mse(&soc, &fut)? * t.w_soc)?;
-            if t.w_self > 0.0 {
-                loss = (loss + (mse(&ind, &fut)? * t.w_self)?)?;
-            }
-            if t.w_interaction > 0.0 {
-                loss = (loss + (interaction_loss(&soc, &fut)? * t.w_interaction)?)?;
-            }
-            if t.w_bone > 0.0 {
-                loss = (loss + (bone_loss(&soc, &fut)? * t.w_bone)?)?;
-            }
-            let grads = loss.backward()?;
-            let norm = opt.grad_norm(&grads)?;
-            let scale = if norm > t.clip_grad {
-                t.clip_grad / norm
-            } else {
-                1.0
-            };
-            opt.step(&grads, scale)?;
-            let l = loss.to_scalar::<f32>()? as f64;
+            let l = train_step(&model, &mut opt, t, &obs, &fut, txt.as_ref())?;
             anyhow::ensure!(l.is_finite(), "loss became {l} at step {step}");
             total += l;
             steps += 1;

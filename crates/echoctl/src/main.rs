@@ -77,8 +77,13 @@ enum Command {
     MockRobot(cmd::mock_robot::Args),
 }
 
-#[tokio::main]
-async fn main() -> Result<()> {
+fn main() -> Result<()> {
+    // Before the runtime's threads start: candle's thread count, read once.
+    echo_models::threads::fix_candle_thread_count();
+    tokio::runtime::Runtime::new()?.block_on(run())
+}
+
+async fn run() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Demo(a) => {

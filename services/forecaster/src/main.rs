@@ -12,9 +12,12 @@ struct Cli {
     args: forecaster::Args,
 }
 
-#[tokio::main]
-async fn main() -> Result<()> {
-    telemetry::init();
-    let cli = Cli::parse();
-    forecaster::serve(cli.args, shutdown::on_signals()).await
+fn main() -> Result<()> {
+    // Before the runtime's threads start: candle's thread count, read once.
+    echo_models::threads::fix_candle_thread_count();
+    tokio::runtime::Runtime::new()?.block_on(async {
+        telemetry::init();
+        let cli = Cli::parse();
+        forecaster::serve(cli.args, shutdown::on_signals()).await
+    })
 }
