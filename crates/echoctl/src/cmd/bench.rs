@@ -8,6 +8,9 @@
 //!   loopback (A publishes, B echoes on another key, A times the return).
 //! * `camera`: the pose estimator's stages at the TIAGo++ head camera's 640 × 480, with 1 and 2
 //!   ONNX Runtime threads, and the bridge's step from its keypoints to a skeleton.
+//! * `sizes`: inference (batch 1 and 16, candle and ONNX Runtime) and one training step
+//!   (batch 64, candle) at the shipped width and at d_model 256 with 4 layers, as JSON for
+//!   `scripts/bench-vs-pytorch`.
 
 use std::time::{Duration, Instant};
 
@@ -51,6 +54,12 @@ pub struct Args {
     /// `forecaster` with `--d-model`: self-attention layers.
     #[arg(long, default_value_t = 1)]
     pub self_layers: usize,
+    /// `sizes`: write the medians here as JSON.
+    #[arg(long)]
+    pub json: Option<std::path::PathBuf>,
+    /// `sizes`: fewer samples (a fifth).
+    #[arg(long)]
+    pub quick: bool,
     /// `camera`: the photograph of a person, scaled into the frame (default: `camera.png` from
     /// the fetched photos, `.cache/photos`).
     #[arg(long)]
@@ -72,6 +81,8 @@ pub enum Bench {
     E2e,
     /// The pose estimator's stages on a 640 × 480 camera image.
     Camera,
+    /// Inference and a training step at two model sizes, for the comparison with PyTorch.
+    Sizes,
 }
 
 /// Run the chosen benchmark and print a one-line summary per case.
@@ -86,13 +97,14 @@ pub async fn run(args: Args) -> Result<()> {
         Bench::Forecaster => match args.d_model {
             Some(d) => {
                 let stem = untrained(&args.model, d, args.self_layers)?;
-                let r = forecaster(&stem, args.samples);
+                let r = forecaster(&stem, args.samples).map(|_| ());
                 let _ = std::fs::remove_file(stem.with_extension("safetensors"));
                 let _ = std::fs::remove_file(stem.with_extension("json"));
                 r
             }
-            None => forecaster(&args.model, args.samples),
+            None => forecaster(&args.model, args.samples).map(|_| ()),
         },
+        Bench::Sizes => super::bench_sizes::run(&args.model, args.quick, args.json.as_deref()),
         Bench::E2e => e2e(&args).await,
         Bench::Camera => super::bench_camera::run(args.samples, args.photo.as_deref()),
     }
@@ -155,7 +167,11 @@ pub(crate) fn report(name: &str, mut v: Vec<f64>) {
 
 /// A randomly initialised checkpoint of `like`'s architecture at width `d` (16 channels per
 /// head) with `self_layers` self-attention layers, in the temporary folder: its stem.
-fn untrained(like: &std::path::Path, d: usize, self_layers: usize) -> Result<std::path::PathBuf> {
+pub(crate) fn untrained(
+    like: &std::path::Path,
+    d: usize,
+    self_layers: usize,
+) -> Result<std::path::PathBuf> {
     use candle_nn::{VarBuilder, VarMap};
     use echo_models::model::Forecaster;
     use echo_models::{Checkpoint, CheckpointMeta};
@@ -184,7 +200,11 @@ fn untrained(like: &std::path::Path, d: usize, self_layers: usize) -> Result<std
     Ok(stem)
 }
 
-fn forecaster(stem: &std::path::Path, samples: usize) -> Result<()> {
+/// One inference case's result: backend, batch, median (ms), samples.
+pub(crate) type Measured = (String, usize, f64, usize);
+
+/// Time each backend on `stem` at batch 1 and 16 (`samples` at batch 1, a quarter at 16).
+pub(crate) fn forecaster(stem: &std::path::Path, samples: usize) -> Result<Vec<Measured>> {
     use echo_models::{Backend, CandleBackend, Checkpoint};
     let dev = candle_core::Device::Cpu;
     let mut ck = Checkpoint::load(stem, &dev)?;
@@ -221,6 +241,7 @@ fn forecaster(stem: &std::path::Path, samples: usize) -> Result<()> {
         .iter()
         .flat_map(|c| echo_eval::window::windows(c, 4))
         .collect();
+    let mut out = Vec::new();
     for b in [1usize, 16] {
         let ws: Vec<&echo_eval::Window> = windows.iter().cycle().take(b).collect();
         let (_, obs) = echo_train::encode_observed(&ws, cfg.obs);
@@ -236,10 +257,13 @@ fn forecaster(stem: &std::path::Path, samples: usize) -> Result<()> {
                 be.predict(b, &obs, &text)?;
                 v.push(t.elapsed().as_secs_f64() * 1e3);
             }
+            let mut sorted = v.clone();
+            sorted.sort_by(f64::total_cmp);
+            out.push((be.name(), b, percentile_sorted(&sorted, 50.0), v.len()));
             report(&format!("forecaster {} batch {b}", be.name()), v);
         }
     }
-    Ok(())
+    Ok(out)
 }
 
 fn bridge(samples: usize) -> Result<()> {

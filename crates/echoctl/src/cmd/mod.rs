@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod bench_camera;
+pub mod bench_sizes;
 pub mod data;
 pub mod demo;
 pub mod eval;
