@@ -5,8 +5,8 @@
 pub mod backend;
 pub mod checkpoint;
 pub mod features;
-pub mod gelu;
 pub mod model;
+pub mod ops;
 pub mod robot_agent;
 pub mod threads;
 pub mod train_config;

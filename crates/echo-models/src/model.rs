@@ -9,8 +9,8 @@
 //!    refined A — each followed by a feed-forward block;
 //! 5. per-agent MLP decoder → a displacement per future frame, added to the last observed frame.
 
-use candle_core::{DType, Device, Module, Result, Tensor, D};
-use candle_nn::{layer_norm, linear, LayerNorm, Linear, VarBuilder};
+use candle_core::{DType, Device, Result, Tensor, D};
+use candle_nn::VarBuilder;
 use serde::{Deserialize, Serialize};
 
 use crate::features::FEATURES;
@@ -125,6 +125,63 @@ impl ForecasterConfig {
     }
 }
 
+/// A linear layer `y = x Wᵀ + b`, stored as candle's (`weight` (out, in), `bias` (out)) and
+/// initialised the same way; the bias is added by [`crate::ops::bias_add`], whose gradient is
+/// one pass over the rows.
+struct Linear {
+    weight: Tensor,
+    bias: Tensor,
+}
+
+impl Linear {
+    fn forward(&self, x: &Tensor) -> Result<Tensor> {
+        let dims = x.dims();
+        let i = dims[dims.len() - 1];
+        let mut out = dims.to_vec();
+        let last = out.len() - 1;
+        out[last] = self.weight.dim(0)?;
+        let y = x
+            .reshape((x.elem_count() / i, i))?
+            .matmul(&self.weight.t()?)?;
+        crate::ops::bias_add(&y, &self.bias)?.reshape(out)
+    }
+}
+
+fn linear(i: usize, o: usize, vb: VarBuilder) -> Result<Linear> {
+    let bound = 1.0 / (i as f64).sqrt();
+    Ok(Linear {
+        weight: vb.get_with_hints((o, i), "weight", candle_nn::init::DEFAULT_KAIMING_NORMAL)?,
+        bias: vb.get_with_hints(
+            o,
+            "bias",
+            candle_nn::Init::Uniform {
+                lo: -bound,
+                up: bound,
+            },
+        )?,
+    })
+}
+
+/// Layer norm over the model width, differentiable ([`crate::ops::layer_norm`]); the
+/// parameters are stored as `weight` and `bias` (gain 1, shift 0 when training starts).
+struct LayerNorm {
+    weight: Tensor,
+    bias: Tensor,
+}
+
+fn layer_norm(d: usize, vb: VarBuilder) -> Result<LayerNorm> {
+    Ok(LayerNorm {
+        weight: vb.get_with_hints(d, "weight", candle_nn::init::ONE)?,
+        bias: vb.get_with_hints(d, "bias", candle_nn::init::ZERO)?,
+    })
+}
+
+impl LayerNorm {
+    fn forward(&self, x: &Tensor) -> Result<Tensor> {
+        crate::ops::layer_norm(x, &self.weight, &self.bias, 1e-5)
+    }
+}
+
 struct Mlp {
     a: Linear,
     b: Linear,
@@ -148,7 +205,7 @@ impl Mlp {
     }
 
     fn forward(&self, x: &Tensor) -> Result<Tensor> {
-        self.b.forward(&crate::gelu::gelu(&self.a.forward(x)?)?)
+        self.b.forward(&crate::ops::gelu(&self.a.forward(x)?)?)
     }
 }
 
@@ -156,7 +213,7 @@ impl Mlp {
 fn zero_linear(i: usize, o: usize, vb: VarBuilder) -> Result<Linear> {
     let w = vb.get_with_hints((o, i), "weight", candle_nn::init::ZERO)?;
     let b = vb.get_with_hints(o, "bias", candle_nn::init::ZERO)?;
-    Ok(Linear::new(w, Some(b)))
+    Ok(Linear { weight: w, bias: b })
 }
 
 struct Attention {
@@ -197,7 +254,7 @@ impl Attention {
         let q = (split(self.q.forward(x)?, tq)? * (1.0 / (dh as f64).sqrt()))?;
         let k = split(self.k.forward(ctx)?, tk)?;
         let v = split(self.v.forward(ctx)?, tk)?;
-        let att = candle_nn::ops::softmax_last_dim(&q.matmul(&k.t()?)?)?;
+        let att = crate::ops::softmax_last_dim(&q.matmul(&k.t()?)?)?;
         let y = att.matmul(&v)?.transpose(1, 2)?.reshape((b, tq, d))?;
         self.o.forward(&y)
     }
@@ -216,10 +273,10 @@ impl Block {
     /// `identity`: both residual branches start at zero, so the block starts as the identity.
     fn new(d: usize, heads: usize, identity: bool, vb: VarBuilder) -> Result<Block> {
         Ok(Block {
-            ln_q: layer_norm(d, 1e-5, vb.pp("ln_q"))?,
-            ln_kv: layer_norm(d, 1e-5, vb.pp("ln_kv"))?,
+            ln_q: layer_norm(d, vb.pp("ln_q"))?,
+            ln_kv: layer_norm(d, vb.pp("ln_kv"))?,
             att: Attention::new(d, heads, identity, vb.pp("att"))?,
-            ln_ff: layer_norm(d, 1e-5, vb.pp("ln_ff"))?,
+            ln_ff: layer_norm(d, vb.pp("ln_ff"))?,
             ff: if identity {
                 Mlp::zero_out(d, 2 * d, d, vb.pp("ff"))?
             } else {
@@ -252,19 +309,18 @@ impl TempMlp {
             .pp("time")
             .get_with_hints(t, "bias", candle_nn::init::ZERO)?;
         Ok(TempMlp {
-            time: Linear::new(w, Some(b)),
-            ln: layer_norm(d, 1e-5, vb.pp("ln"))?,
+            time: Linear { weight: w, bias: b },
+            ln: layer_norm(d, vb.pp("ln"))?,
         })
     }
 
     /// `Linear_time` as `W x + b` over each window's (t, d) matrix: no transposes.
     fn forward(&self, x: &Tensor) -> Result<Tensor> {
         let (b, t, _) = x.dims3()?;
-        let w = self.time.weight().broadcast_left(b)?;
-        let mut y = w.matmul(x)?;
-        if let Some(bias) = self.time.bias() {
-            y = y.broadcast_add(&bias.reshape((1, t, 1))?)?;
-        }
+        let w = self.time.weight.broadcast_left(b)?;
+        let y = w
+            .matmul(x)?
+            .broadcast_add(&self.time.bias.reshape((1, t, 1))?)?;
         x + self.ln.forward(&y)?
     }
 }
@@ -738,6 +794,48 @@ mod tests {
             .to_scalar::<f32>()
             .unwrap();
         assert!(diff < 1e-6, "{diff}");
+    }
+
+    /// Gradients reach every parameter: with all weights random (no zero-initialised layer to
+    /// stop them), one loss's gradient is non-zero for each variable — layer norms, temporal
+    /// blocks, query and key projections included.
+    #[test]
+    fn every_parameter_receives_a_gradient() {
+        let dev = Device::Cpu;
+        let cfg = ForecasterConfig {
+            text_dim: 12,
+            velocity_prior_s: 0.3,
+            ..ForecasterConfig::default()
+        };
+        let vm = VarMap::new();
+        let m =
+            Forecaster::new(cfg.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev)).unwrap();
+        for (_, v) in vm.data().lock().unwrap().iter() {
+            v.set(&Tensor::randn(0f32, 0.2, v.shape(), &dev).unwrap())
+                .unwrap();
+        }
+        let obs = Tensor::randn(0f32, 1.0, (3, 2, cfg.obs, FEATURES), &dev).unwrap();
+        let fut = Tensor::randn(0f32, 1.0, (3, 2, cfg.pred, FEATURES), &dev).unwrap();
+        let text = Tensor::randn(0f32, 1.0, (3, 12), &dev).unwrap();
+        let (soc, ind) = m.forward_both(&obs, Some(&text)).unwrap();
+        let loss = (mse(&soc, &fut).unwrap() + mse(&ind, &fut).unwrap()).unwrap();
+        let grads = loss.backward().unwrap();
+        let data = vm.data().lock().unwrap();
+        let mut names: Vec<_> = data.keys().cloned().collect();
+        names.sort();
+        for name in names {
+            let g = grads
+                .get(data[&name].as_tensor())
+                .unwrap_or_else(|| panic!("{name}: no gradient"));
+            let norm = g
+                .sqr()
+                .unwrap()
+                .sum_all()
+                .unwrap()
+                .to_scalar::<f32>()
+                .unwrap();
+            assert!(norm > 0.0, "{name}: zero gradient");
+        }
     }
 
     #[test]

@@ -11,6 +11,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use candle_core::backprop::GradStore;
 use candle_core::{DType, Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
 use echo_eval::evaluate;
@@ -29,9 +30,8 @@ use crate::optim::AdamW;
 use crate::predictor::ModelPredictor;
 
 /// One optimisation step on a batch (`obs` (b, 2, obs, F), `fut` (b, 2, pred, F), prompts
-/// (b, text_dim) when the model reads text): the weighted loss, backward, global-norm
-/// clipping to `t.clip_grad`, one AdamW update at the optimiser's current rate. Returns the
-/// loss before the update.
+/// (b, text_dim) when the model reads text): [`batch_loss`], backward, [`update`]. Returns
+/// the loss before the update.
 pub fn train_step(
     model: &Forecaster,
     opt: &mut AdamW,
@@ -40,6 +40,19 @@ pub fn train_step(
     fut: &Tensor,
     text: Option<&Tensor>,
 ) -> anyhow::Result<f64> {
+    let loss = batch_loss(model, t, obs, fut, text)?;
+    update(opt, t, &loss.backward()?)?;
+    Ok(loss.to_scalar::<f32>()? as f64)
+}
+
+/// The weighted training loss of a batch (the forward pass).
+pub fn batch_loss(
+    model: &Forecaster,
+    t: &TrainConfig,
+    obs: &Tensor,
+    fut: &Tensor,
+    text: Option<&Tensor>,
+) -> candle_core::Result<Tensor> {
     let (soc, ind) = model.forward_both(obs, text)?;
     let mut loss = (mse(&soc, fut)? * t.w_soc)?;
     if t.w_self > 0.0 {
@@ -51,15 +64,19 @@ pub fn train_step(
     if t.w_bone > 0.0 {
         loss = (loss + (bone_loss(&soc, fut)? * t.w_bone)?)?;
     }
-    let grads = loss.backward()?;
-    let norm = opt.grad_norm(&grads)?;
+    Ok(loss)
+}
+
+/// Global-norm clipping of `grads` to `t.clip_grad`, then one AdamW update at the
+/// optimiser's current rate.
+pub fn update(opt: &mut AdamW, t: &TrainConfig, grads: &GradStore) -> candle_core::Result<()> {
+    let norm = opt.grad_norm(grads)?;
     let scale = if norm > t.clip_grad {
         t.clip_grad / norm
     } else {
         1.0
     };
-    opt.step(&grads, scale)?;
-    Ok(loss.to_scalar::<f32>()? as f64)
+    opt.step(grads, scale)
 }
 
 /// Prompt embeddings: every distinct description once.

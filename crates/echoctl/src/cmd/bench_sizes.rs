@@ -14,7 +14,7 @@ use echo_bus::stats::percentile_sorted;
 use echo_models::model::{Forecaster, ForecasterConfig};
 use echo_models::{CheckpointMeta, TrainConfig};
 use echo_train::optim::AdamW;
-use echo_train::train::train_step;
+use echo_train::train::{batch_loss, train_step, update};
 
 /// The two sizes: name, width, self-attention layers.
 const SIZES: [(&str, usize, usize); 2] = [("d64", 64, 1), ("d256", 256, 4)];
@@ -93,13 +93,36 @@ fn train_steps(cfg: &ForecasterConfig, b: usize, n: usize) -> Result<(f64, usize
         train_step(&model, &mut opt, &t, &obs, &fut, text.as_ref())?;
     }
     let mut v = Vec::with_capacity(n);
-    for _ in 0..n {
+    let mut parts = [Vec::new(), Vec::new(), Vec::new()];
+    for i in 0..2 * n {
         let s = Instant::now();
-        train_step(&model, &mut opt, &t, &obs, &fut, text.as_ref())?;
-        v.push(s.elapsed().as_secs_f64() * 1e3);
+        if i % 2 == 0 {
+            train_step(&model, &mut opt, &t, &obs, &fut, text.as_ref())?;
+            v.push(s.elapsed().as_secs_f64() * 1e3);
+            continue;
+        }
+        // The same step in its three parts, each timed.
+        let loss = batch_loss(&model, &t, &obs, &fut, text.as_ref())?;
+        loss.to_scalar::<f32>()?;
+        let forward = s.elapsed().as_secs_f64() * 1e3;
+        let grads = loss.backward()?;
+        let backward = s.elapsed().as_secs_f64() * 1e3;
+        update(&mut opt, &t, &grads)?;
+        let done = s.elapsed().as_secs_f64() * 1e3;
+        for (p, x) in parts
+            .iter_mut()
+            .zip([forward, backward - forward, done - backward])
+        {
+            p.push(x);
+        }
     }
-    v.sort_by(f64::total_cmp);
-    Ok((percentile_sorted(&v, 50.0), n))
+    let med = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        percentile_sorted(&v, 50.0)
+    };
+    let [f, b, u] = parts.map(med);
+    println!("  training step parts (medians): forward + loss {f:.2} ms, backward {b:.2} ms, clip + AdamW {u:.2} ms");
+    Ok((med(v), n))
 }
 
 /// Floating-point operations of one window's forward pass (a multiply-add counts two; matrix

@@ -11,12 +11,14 @@
 
 use candle_core::{CpuStorage, CustomOp1, CustomOp2, Layout, Result, Shape, Tensor};
 
+use super::{has_avx2, slice};
+
 const SQRT_2_OVER_PI: f32 = 0.797_884_6;
 const CUBIC: f32 = 0.044_715;
 
 /// GELU of `x` (tanh form): fused on the CPU, candle's `gelu` elsewhere.
 pub fn gelu(x: &Tensor) -> Result<Tensor> {
-    if x.device().is_cpu() && x.dtype() == candle_core::DType::F32 {
+    if super::fused(x) {
         x.contiguous()?.apply_op1(GeluTanh)
     } else {
         x.gelu()
@@ -28,29 +30,29 @@ pub fn gelu(x: &Tensor) -> Result<Tensor> {
 fn tanh(x: f32) -> f32 {
     let x = x.clamp(-7.905_311, 7.905_311);
     let x2 = x * x;
-    let mut p = x2.mul_add(-2.760_768_5e-16, 2.000_188e-13);
-    p = x2.mul_add(p, -8.604_672e-11);
-    p = x2.mul_add(p, 5.122_297e-8);
-    p = x2.mul_add(p, 1.485_722_4e-5);
-    p = x2.mul_add(p, 6.372_619_3e-4);
-    p = x2.mul_add(p, 4.893_524_6e-3);
-    let mut q = x2.mul_add(1.198_258_4e-6, 1.185_347_1e-4);
-    q = x2.mul_add(q, 2.268_434_6e-3);
-    q = x2.mul_add(q, 4.893_525e-3);
+    let mut p = x2 * -2.760_768_5e-16 + 2.000_188e-13;
+    p = x2 * p + -8.604_672e-11;
+    p = x2 * p + 5.122_297e-8;
+    p = x2 * p + 1.485_722_4e-5;
+    p = x2 * p + 6.372_619_3e-4;
+    p = x2 * p + 4.893_524_6e-3;
+    let mut q = x2 * 1.198_258_4e-6 + 1.185_347_1e-4;
+    q = x2 * q + 2.268_434_6e-3;
+    q = x2 * q + 4.893_525e-3;
     x * p / q
 }
 
 #[inline(always)]
 fn forward_one(x: f32) -> f32 {
-    let t = tanh(SQRT_2_OVER_PI * x * CUBIC.mul_add(x * x, 1.0));
+    let t = tanh(SQRT_2_OVER_PI * x * (CUBIC * x * x + 1.0));
     0.5 * x * (1.0 + t)
 }
 
 /// d GELU / dx.
 #[inline(always)]
 fn derivative_one(x: f32) -> f32 {
-    let t = tanh(SQRT_2_OVER_PI * x * CUBIC.mul_add(x * x, 1.0));
-    let du = SQRT_2_OVER_PI * (3.0 * CUBIC).mul_add(x * x, 1.0);
+    let t = tanh(SQRT_2_OVER_PI * x * (CUBIC * x * x + 1.0));
+    let du = SQRT_2_OVER_PI * (3.0 * CUBIC * x * x + 1.0);
     0.5 * (1.0 + t) + 0.5 * x * (1.0 - t * t) * du
 }
 
@@ -80,17 +82,6 @@ fn backward_avx2(x: &[f32], g: &[f32], y: &mut [f32]) {
     backward_into(x, g, y)
 }
 
-fn has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
 /// GELU over a slice.
 pub fn gelu_slice(x: &[f32]) -> Vec<f32> {
     let mut y = vec![0f32; x.len()];
@@ -115,17 +106,6 @@ pub fn gelu_grad_slice(x: &[f32], g: &[f32]) -> Vec<f32> {
     }
     backward_into(x, g, &mut y);
     y
-}
-
-/// A contiguous f32 slice of a CPU storage.
-fn slice<'a>(s: &'a CpuStorage, l: &Layout) -> Result<&'a [f32]> {
-    let CpuStorage::F32(v) = s else {
-        candle_core::bail!("gelu: f32 only");
-    };
-    match l.contiguous_offsets() {
-        Some((a, b)) => Ok(&v[a..b]),
-        None => candle_core::bail!("gelu: the input must be contiguous"),
-    }
 }
 
 struct GeluTanh;
