@@ -326,14 +326,7 @@ pub fn train(
     };
     let vm = VarMap::new();
     let model = Forecaster::new(cfg.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev))?;
-    let named: Vec<(String, candle_core::Var)> = vm
-        .data()
-        .lock()
-        .map_err(|_| anyhow::anyhow!("poisoned weights"))?
-        .iter()
-        .map(|(k, v)| (k.clone(), v.clone()))
-        .collect();
-    let mut opt = AdamW::new(named, t.lr, 1e-4)?;
+    let mut opt = AdamW::from_varmap(&vm, t.lr, 1e-4)?;
     let started = Instant::now();
     let mut step = 0usize;
     let mut log = vec![];

@@ -42,6 +42,18 @@ impl AdamW {
         })
     }
 
+    /// Optimise every variable of `vm`.
+    pub fn from_varmap(vm: &candle_nn::VarMap, lr: f64, weight_decay: f64) -> Result<AdamW> {
+        let vars = vm
+            .data()
+            .lock()
+            .map_err(|_| candle_core::Error::Msg("poisoned weights".into()))?
+            .iter()
+            .map(|(k, v)| (k.clone(), v.clone()))
+            .collect();
+        AdamW::new(vars, lr, weight_decay)
+    }
+
     /// Steps taken.
     pub fn steps(&self) -> u64 {
         self.step

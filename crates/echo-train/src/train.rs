@@ -348,16 +348,7 @@ pub fn train(
             .load(init)
             .map_err(|e| anyhow::anyhow!("initial weights {}: {e}", init.display()))?;
     }
-    let named = || -> anyhow::Result<Vec<(String, candle_core::Var)>> {
-        Ok(varmap
-            .data()
-            .lock()
-            .map_err(|_| anyhow::anyhow!("poisoned weights"))?
-            .iter()
-            .map(|(k, v)| (k.clone(), v.clone()))
-            .collect())
-    };
-    let mut opt = AdamW::new(named()?, t.lr, 1e-4)?;
+    let mut opt = AdamW::from_varmap(&varmap, t.lr, 1e-4)?;
     let paths = run.state.as_deref().map(StatePaths::of);
     let mut state = TrainState {
         next_epoch: 0,

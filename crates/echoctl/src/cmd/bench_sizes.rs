@@ -74,15 +74,8 @@ fn train_steps(cfg: &ForecasterConfig, b: usize, n: usize) -> Result<(f64, usize
     let dev = Device::Cpu;
     let vm = VarMap::new();
     let model = Forecaster::new(cfg.clone(), VarBuilder::from_varmap(&vm, DType::F32, &dev))?;
-    let vars = vm
-        .data()
-        .lock()
-        .map_err(|_| anyhow::anyhow!("poisoned weights"))?
-        .iter()
-        .map(|(k, v)| (k.clone(), v.clone()))
-        .collect();
     let t = TrainConfig::default();
-    let mut opt = AdamW::new(vars, t.lr, 1e-4)?;
+    let mut opt = AdamW::from_varmap(&vm, t.lr, 1e-4)?;
     let f = cfg.agent_features[0];
     let obs = Tensor::randn(0f32, 0.5, (b, 2, cfg.obs, f), &dev)?;
     let fut = Tensor::randn(0f32, 0.5, (b, 2, cfg.pred, f), &dev)?;
