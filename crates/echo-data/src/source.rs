@@ -13,9 +13,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use echo_motion::capture::{load_bvh_pair, CleanReport, PairOptions};
-use echo_motion::synth::{
-    generate_greeting_split, generate_split, generate_walking_split, Clip, Split,
-};
+use echo_motion::synth::{generate_clips, generate_split, Clip, Split};
 
 use crate::spec::{Family, Source};
 use crate::DataError;
@@ -145,8 +143,12 @@ pub fn load(
                 _ => (train / 20).max(26),
             };
             let clips = match family {
-                Family::Walking => generate_walking_split(split, 0..n, 2, &|| {}),
-                Family::Greeting => generate_greeting_split(split, 0..n, 2, &|| {}),
+                Family::Walking => {
+                    generate_clips((0..n).map(|i| split.walking_clip(i)).collect(), 2, &|| {})
+                }
+                Family::Greeting => {
+                    generate_clips((0..n).map(|i| split.greeting_clip(i)).collect(), 2, &|| {})
+                }
                 Family::Standing => generate_split(split, 0..n, 2, &|| {}),
             };
             Ok(clips

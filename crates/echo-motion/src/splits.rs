@@ -1,37 +1,9 @@
 //! Whole dataset splits of the generator, made in parallel: its original clips, its walking
-//! clips and its greeting clips ([`Split`]'s clip, walking_clip and greeting_clip), each clip
-//! choreographed by [`crate::synth::generate`].
+//! clips and its greeting clips (the parameters from [`Split`]'s clip, walking_clip and
+//! greeting_clip), each clip choreographed by [`crate::synth::generate`].
 
 use crate::params::{ClipParams, Split};
 use crate::synth::{generate, Clip};
-
-/// Generate walking clips `range` of a split ([`Split::walking_clip`]).
-pub fn generate_walking_split(
-    split: Split,
-    range: std::ops::Range<u64>,
-    threads: usize,
-    progress: &(dyn Fn() + Sync),
-) -> Vec<Clip> {
-    generate_params(
-        range.map(|i| split.walking_clip(i)).collect(),
-        threads,
-        progress,
-    )
-}
-
-/// Generate greeting clips `range` of a split ([`Split::greeting_clip`]).
-pub fn generate_greeting_split(
-    split: Split,
-    range: std::ops::Range<u64>,
-    threads: usize,
-    progress: &(dyn Fn() + Sync),
-) -> Vec<Clip> {
-    generate_params(
-        range.map(|i| split.greeting_clip(i)).collect(),
-        threads,
-        progress,
-    )
-}
 
 /// Generate clips `range` of a split on `threads` threads, calling `progress` after each clip.
 pub fn generate_split(
@@ -40,10 +12,12 @@ pub fn generate_split(
     threads: usize,
     progress: &(dyn Fn() + Sync),
 ) -> Vec<Clip> {
-    generate_params(range.map(|i| split.clip(i)).collect(), threads, progress)
+    generate_clips(range.map(|i| split.clip(i)).collect(), threads, progress)
 }
 
-fn generate_params(
+/// Generate the clips of `ids` (any family: [`Split::clip`], [`Split::walking_clip`],
+/// [`Split::greeting_clip`]) on `threads` threads, calling `progress` after each clip.
+pub fn generate_clips(
     ids: Vec<ClipParams>,
     threads: usize,
     progress: &(dyn Fn() + Sync),

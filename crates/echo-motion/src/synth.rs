@@ -15,7 +15,7 @@ use rand::{Rng, SeedableRng};
 pub use crate::params::{ClipParams, ParamRanges, Split, GREETING_KINDS, KINDS, WALKING_KINDS};
 use crate::posing::{arm_length, pose, to_arm_target, wrap, Intent};
 use crate::skeleton::{forward, j, Body, NUM_JOINTS};
-pub use crate::splits::{generate_greeting_split, generate_split, generate_walking_split};
+pub use crate::splits::{generate_clips, generate_split};
 
 /// Frame rate of generated clips (the InterGen rate).
 pub const FPS: f64 = 30.0;
@@ -821,7 +821,11 @@ mod walking_tests {
 
     #[test]
     fn walking_clips_walk_accelerate_and_swing_their_arms_like_people() {
-        let clips = generate_walking_split(Split::Test, 0..12, 2, &|| {});
+        let clips = generate_clips(
+            (0..12).map(|i| Split::Test.walking_clip(i)).collect(),
+            2,
+            &|| {},
+        );
         let (mut v, mut a) = (vec![], vec![]);
         for c in &clips {
             assert!(c.params.locomotion);
@@ -867,7 +871,11 @@ mod walking_tests {
 
     #[test]
     fn greeting_clips_meet_briefly_and_step_back() {
-        let clips = generate_greeting_split(Split::Test, 0..9, 2, &|| {});
+        let clips = generate_clips(
+            (0..9).map(|i| Split::Test.greeting_clip(i)).collect(),
+            2,
+            &|| {},
+        );
         for c in &clips {
             assert!(c.params.locomotion && c.params.brief);
             assert!(GREETING_KINDS.contains(&c.params.kind));

@@ -154,7 +154,8 @@ async fn e2e(args: &Args) -> Result<()> {
 }
 
 /// One line: count, median, p99 and max of `v` (milliseconds).
-pub(crate) fn report(name: &str, mut v: Vec<f64>) {
+/// Print a case's median, p99 and maximum; returns the median.
+pub(crate) fn report(name: &str, mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     println!(
         "{name:<40} n={:<6} median {:8.3} ms   p99 {:8.3} ms   max {:8.3} ms",
@@ -163,6 +164,7 @@ pub(crate) fn report(name: &str, mut v: Vec<f64>) {
         percentile_sorted(&v, 99.0),
         v[v.len() - 1]
     );
+    percentile_sorted(&v, 50.0)
 }
 
 /// A randomly initialised checkpoint of `like`'s architecture at width `d` (16 channels per
@@ -257,10 +259,9 @@ pub(crate) fn forecaster(stem: &std::path::Path, samples: usize) -> Result<Vec<M
                 be.predict(b, &obs, &text)?;
                 v.push(t.elapsed().as_secs_f64() * 1e3);
             }
-            let mut sorted = v.clone();
-            sorted.sort_by(f64::total_cmp);
-            out.push((be.name(), b, percentile_sorted(&sorted, 50.0), v.len()));
-            report(&format!("forecaster {} batch {b}", be.name()), v);
+            let n = v.len();
+            let median = report(&format!("forecaster {} batch {b}", be.name()), v);
+            out.push((be.name(), b, median, n));
         }
     }
     Ok(out)
