@@ -11,7 +11,31 @@ use std::time::Duration;
 use anyhow::{bail, Context, Result};
 use echo_bus::config::loopback_mesh;
 use echo_bus::{keys, Bus, BusArgs};
+use echo_launch::profile::{expand, Profile, Vars};
 use echo_launch::{Group, Logs, ProcessSpec};
+
+/// The repository root (profiles, scenarios, shipped models).
+pub fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The values the system tests fill into the placement profiles' placeholders: the shipped
+/// models and deployment files of this checkout, the HRI model as the demo's forecaster, and no
+/// scenario, bystander or start time (the tests start their own partner).
+pub fn profile_vars() -> Vars {
+    let root = repo();
+    Vars::new()
+        .set("models", root.join("models").display().to_string())
+        .set("deploy", root.join("deploy").display().to_string())
+        .set(
+            "forecaster_model",
+            root.join("models/hri").display().to_string(),
+        )
+        .set("format", "smpl24-points")
+        .set_all("bystander", vec![])
+        .set_all("scenario", vec![])
+        .set_all("t0", vec![])
+}
 
 /// Directory holding the workspace's binaries for the profile the tests were built with.
 pub fn bin_dir() -> PathBuf {
@@ -86,6 +110,36 @@ impl Harness {
         all.extend(net.to_cli());
         let all: Vec<&str> = all.iter().map(String::as_str).collect();
         self.spawn_raw(label, program, &all)
+    }
+
+    /// Start the service `service` of placement profile `profile` (`deploy/profiles/<profile>.json`,
+    /// the description `echoctl up` and `echoctl demo` start) with its placeholders filled from
+    /// `vars` and `extra` arguments appended, on the next mesh slot; labelled by its name.
+    pub fn spawn_service(
+        &mut self,
+        profile: &str,
+        service: &str,
+        vars: &Vars,
+        extra: &[&str],
+    ) -> Result<()> {
+        let p = Profile::load(profile, &repo().join("deploy"))?;
+        let spec = p
+            .service(service)
+            .with_context(|| format!("profile {profile} has no service {service}"))?;
+        let mut args = expand(spec, vars)?;
+        args.extend(extra.iter().map(|a| a.to_string()));
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        self.spawn(&spec.name, &spec.program, &args)
+    }
+
+    /// Start every service of placement profile `profile` in its order
+    /// ([`Harness::spawn_service`] without extra arguments); returns their names.
+    pub fn spawn_profile(&mut self, profile: &str, vars: &Vars) -> Result<Vec<String>> {
+        let p = Profile::load(profile, &repo().join("deploy"))?;
+        for spec in &p.services {
+            self.spawn_service(profile, &spec.name, vars, &[])?;
+        }
+        Ok(p.services.into_iter().map(|s| s.name).collect())
     }
 
     /// Start `program` with exactly `args` (no mesh flags), e.g. a router with its own endpoints.
@@ -227,19 +281,16 @@ pub fn check_command_limits(
 /// The services of the human–robot pipeline the demo's scenarios run (their liveliness names).
 pub const HRI_SERVICES: [&str; 4] = ["mock-robot", "perception-bridge", "forecaster", "safety"];
 
-/// Start the human–robot pipeline as processes: the simulated robot, the perception bridge,
-/// the forecaster with the shipped HRI model (`models/hri`) and the safety service requiring
-/// the robot ([`HRI_SERVICES`]; the partner, mock perception, is started by the test).
+/// Start the human–robot pipeline as processes, as the `demo` profile describes it: the
+/// simulated robot, the perception bridge, the forecaster with the shipped HRI model
+/// (`models/hri`) and the safety service requiring the robot ([`HRI_SERVICES`]; the partner,
+/// mock perception, is started by the test).
 pub fn spawn_hri_pipeline(h: &mut Harness) -> Result<()> {
-    let hri_model = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/hri");
-    h.spawn("mock-robot", "echoctl", &["mock-robot"])?;
-    h.spawn("perception-bridge", "perception-bridge", &[])?;
-    h.spawn(
-        "forecaster",
-        "forecaster",
-        &["--model", hri_model.to_str().unwrap_or_default()],
-    )?;
-    h.spawn("safety", "safety", &["--require", "mock-robot"])
+    let vars = profile_vars();
+    for s in HRI_SERVICES {
+        h.spawn_service("demo", s, &vars, &[])?;
+    }
+    Ok(())
 }
 
 /// The human–robot pipeline started ([`spawn_hri_pipeline`]) on a fresh mesh for `robot`, the

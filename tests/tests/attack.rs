@@ -115,32 +115,23 @@ fn seconds() -> f64 {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn hostile_input_on_every_key_never_reaches_the_robot() -> anyhow::Result<()> {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let hri = root.join("models/hri");
-    let rt = root.join("models/retargeter");
+    // The pipeline `echoctl up --profile single` runs, the safety service also on ROS 2.
     let mut h = Harness::new(ROBOT, 6)?;
-    h.spawn("mock-robot", "echoctl", &["mock-robot"])?;
-    h.spawn("perception-bridge", "perception-bridge", &[])?;
-    h.spawn(
+    let vars = echo_system_tests::profile_vars();
+    for s in [
+        "mock-robot",
+        "perception-bridge",
         "safety",
-        "safety",
-        &["--require", "mock-robot", "--ros2-namespace", NS],
-    )?;
-    h.spawn(
         "forecaster",
-        "forecaster",
-        &["--model", hri.to_str().unwrap()],
-    )?;
-    h.spawn(
         "retargeter",
-        "retargeter",
-        &["--model", rt.to_str().unwrap()],
-    )?;
-    h.spawn(
         "mock-perception",
-        "echoctl",
-        &["mock-perception", "--clip", "test:0", "--robot-plays-b"],
-    )?;
+    ] {
+        let extra: &[&str] = match s {
+            "safety" => &["--ros2-namespace", NS],
+            _ => &[],
+        };
+        h.spawn_service("single", s, &vars, extra)?;
+    }
     let bus = h.bus("attacker").await?;
     let robot: RobotId = bus.robot().clone();
     let services = [

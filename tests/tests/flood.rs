@@ -51,11 +51,11 @@ fn hostile(robot: &str) -> Vec<Vec<u8>> {
 async fn services_survive_a_flood_of_bad_input() -> anyhow::Result<()> {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let fc_model = root.join("models/forecaster");
-    let rt_model = root.join("models/retargeter");
     let mut h = Harness::new("sys-flood", 6)?;
-    h.spawn("mock-robot", "echoctl", &["mock-robot"])?;
-    h.spawn("perception-bridge", "perception-bridge", &[])?;
-    h.spawn("safety", "safety", &["--require", "mock-robot"])?;
+    let vars = echo_system_tests::profile_vars();
+    for s in ["mock-robot", "perception-bridge", "safety"] {
+        h.spawn_service("single", s, &vars, &[])?;
+    }
     h.spawn(
         "forecaster",
         "forecaster",
@@ -66,11 +66,7 @@ async fn services_survive_a_flood_of_bad_input() -> anyhow::Result<()> {
             "zero-velocity",
         ],
     )?;
-    h.spawn(
-        "retargeter",
-        "retargeter",
-        &["--model", rt_model.to_str().unwrap()],
-    )?;
+    h.spawn_service("single", "retargeter", &vars, &[])?;
     h.spawn("mock-perception", "echoctl", &["mock-perception"])?;
     let bus = h.bus("flooder").await?;
     let robot: RobotId = bus.robot().clone();

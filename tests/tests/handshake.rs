@@ -25,7 +25,7 @@ async fn the_robot_shakes_the_offered_hand_within_its_limits_and_clearances() ->
 {
     let model = RobotModel::tiago_dual();
     let body = RobotBody::tiago(&model)?;
-    let mission = Mission::named("handshake").map_err(anyhow::Error::msg)?;
+    let mission = Mission::load("handshake", &echo_system_tests::repo().join("deploy"))?;
     let seg = mission.segments[0].clone();
     assert_eq!(format!("{:?}", seg.interaction), "Handshake");
     let clearances = SeparationConfig::default();

@@ -30,17 +30,11 @@ async fn query(
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_robot_imitates_the_partner_through_the_safety_filter() -> anyhow::Result<()> {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let model = root.join("models/retargeter");
     let mut h = Harness::new("sys-imitation", 5)?;
-    h.spawn("mock-robot", "echoctl", &["mock-robot"])?;
-    h.spawn("perception-bridge", "perception-bridge", &[])?;
-    h.spawn(
-        "retargeter",
-        "retargeter",
-        &["--model", model.to_str().unwrap_or_default()],
-    )?;
-    h.spawn("safety", "safety", &["--require", "mock-robot"])?;
+    let vars = echo_system_tests::profile_vars();
+    for s in ["mock-robot", "perception-bridge", "retargeter", "safety"] {
+        h.spawn_service("single", s, &vars, &[])?;
+    }
     let t0 = now_ns() + 2_000_000_000;
     h.spawn(
         "mock-perception",

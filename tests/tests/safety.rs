@@ -100,8 +100,9 @@ impl Driver {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn plan_loss_stops_the_robot_and_resumption_has_no_jump() -> anyhow::Result<()> {
     let mut h = Harness::new("sys-safety", 2)?;
-    h.spawn("mock-robot", "echoctl", &["mock-robot"])?;
-    h.spawn("safety", "safety", &["--require", "mock-robot"])?;
+    let vars = echo_system_tests::profile_vars();
+    h.spawn_service("single", "mock-robot", &vars, &[])?;
+    h.spawn_service("single", "safety", &vars, &[])?;
     let bus = h.bus("test-forecaster").await?;
     let robot = bus.robot().clone();
     let states = bus.subscribe(&topics::robot_state(&robot)).await?;

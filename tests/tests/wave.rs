@@ -21,7 +21,7 @@ type HandSample = (f64, [f64; 3], [f64; 3]);
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_robot_waves_back_recognisably_within_its_limits() -> anyhow::Result<()> {
     let model = RobotModel::tiago_dual();
-    let mission = Mission::named("wave").map_err(anyhow::Error::msg)?;
+    let mission = Mission::load("wave", &echo_system_tests::repo().join("deploy"))?;
     let seg = mission.segments[0].clone();
     assert_eq!(format!("{:?}", seg.interaction), "Wave");
 

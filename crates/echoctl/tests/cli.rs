@@ -71,6 +71,27 @@ fn demo_from_pictures_needs_a_folder_of_them_and_no_scenario() {
 }
 
 #[test]
+fn a_scenario_file_of_ones_own_is_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("mine.json");
+    std::fs::write(
+        &file,
+        r#"{"description": "d", "interactions": [{"interaction": "wave", "clip": "standing", "hold": 1}]}"#,
+    )
+    .unwrap();
+    let out = echoctl(&["demo", "--scenario", file.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("unknown field `hold`"), "{err}");
+    let out = echoctl(&["demo", "--scenario", "dance"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("unknown scenario 'dance'") && err.contains("walk-up"),
+        "{err}"
+    );
+}
+
+#[test]
 fn data_and_eval_verbs_work_end_to_end() {
     let scratch = tempfile::tempdir().unwrap();
     let dir = scratch.path().to_path_buf();

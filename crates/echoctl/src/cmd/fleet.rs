@@ -1,6 +1,7 @@
-//! A fleet under load, for `echoctl bench e2e` and `echoctl soak`: one perception bridge per
-//! robot, one forecaster serving every robot (batched), a safety service per robot that has one,
-//! all as separate processes with Zenoh peer sessions on loopback. This process plays the
+//! A fleet under load, for `echoctl bench e2e` and `echoctl soak`: the `fleet` placement profile
+//! (`deploy/profiles/fleet.json`) started as one perception bridge per robot, one forecaster
+//! serving every robot (batched), a safety service per robot that has one, all as separate
+//! processes with Zenoh peer sessions on loopback. This process plays the
 //! robots' cameras and joint encoders (pose-estimator frames at 15 Hz stamped when sent, joint
 //! states at 50 Hz) and times what comes back:
 //!
@@ -20,6 +21,7 @@ use anyhow::{anyhow, Result};
 use echo_bus::config::loopback_mesh;
 use echo_bus::stats::{latency_summary, process_rss_mib};
 use echo_bus::{keys, topics, Bus, BusArgs, RobotId};
+use echo_launch::profile::{expand, Profile, Vars};
 use echo_launch::{Group, Logs, ProcessSpec};
 use echo_msgs::{now_ns, ControlMode, Header, InteractionIntent, JointState, KeypointFrame};
 use echo_sim::perception::MockPerceptionConfig;
@@ -79,17 +81,50 @@ pub fn med_p99(v: &[f64]) -> String {
     }
 }
 
-fn spawn(
-    children: &mut Group,
-    exe_dir: &Path,
-    log_dir: &Path,
-    label: &str,
-    program: &str,
-    args: Vec<String>,
-) -> Result<()> {
-    let spec = ProcessSpec::new(label, exe_dir.join(program), args);
-    children.start(&spec, &Logs::in_dir(log_dir, label))?;
-    Ok(())
+/// The services of the `fleet` placement profile, with the run's values filled in.
+struct FleetProfile {
+    profile: Profile,
+    vars: Vars,
+}
+
+impl FleetProfile {
+    fn load(opts: &FleetOptions, ids: &[RobotId]) -> Result<FleetProfile> {
+        let deploy = echo_assets::deploy_dir(Path::new("deploy"));
+        let profile = Profile::load("fleet", &deploy)?;
+        let serve: Vec<&str> = ids.iter().skip(1).map(|r| r.as_str()).collect();
+        let vars = Vars::new()
+            .set("model", opts.model.display().to_string())
+            .set("backend", opts.backend.to_string())
+            .set_all(
+                "serve",
+                match serve.is_empty() {
+                    true => vec![],
+                    false => vec![serve.join(",")],
+                },
+            );
+        Ok(FleetProfile { profile, vars })
+    }
+
+    /// Start the profile's service `name` as `label` with the network flags `net`.
+    fn spawn(
+        &self,
+        children: &mut Group,
+        exe_dir: &Path,
+        log_dir: &Path,
+        name: &str,
+        label: &str,
+        net: Vec<String>,
+    ) -> Result<()> {
+        let spec = self
+            .profile
+            .service(name)
+            .ok_or_else(|| anyhow!("profile fleet has no service {name}"))?;
+        let mut args = expand(spec, &self.vars)?;
+        args.extend(net);
+        let spec = ProcessSpec::new(label, exe_dir.join(&spec.program), args);
+        children.start(&spec, &Logs::in_dir(log_dir, label))?;
+        Ok(())
+    }
 }
 
 /// The one field of a forecast the load generator reads.
@@ -125,51 +160,39 @@ pub async fn run(opts: &FleetOptions) -> Result<FleetReport> {
         a.robot = robot.to_string();
         a.to_cli()
     };
+    let fleet = FleetProfile::load(opts, &ids)?;
     let mut children = Group::new(Duration::from_secs(5));
     let mut slot = 1;
+    let log_dir = &opts.log_dir;
     for r in &ids {
-        spawn(
+        let label = format!("bridge-{r}");
+        fleet.spawn(
             &mut children,
             &exe_dir,
-            &opts.log_dir,
-            &format!("bridge-{r}"),
+            log_dir,
             "perception-bridge",
+            &label,
             net(slot, r),
         )?;
         slot += 1;
     }
     for r in ids.iter().take(opts.with_safety) {
-        spawn(
+        let label = format!("safety-{r}");
+        fleet.spawn(
             &mut children,
             &exe_dir,
-            &opts.log_dir,
-            &format!("safety-{r}"),
+            log_dir,
             "safety",
+            &label,
             net(slot, r),
         )?;
         slot += 1;
     }
-    let mut fc = net(slot, &ids[0]);
-    fc.extend([
-        "--model".into(),
-        opts.model.display().to_string(),
-        "--backend".into(),
-        opts.backend.to_string(),
-    ]);
-    if ids.len() > 1 {
-        fc.push("--robots".into());
-        fc.push(
-            ids[1..]
-                .iter()
-                .map(|r| r.as_str())
-                .collect::<Vec<_>>()
-                .join(","),
-        );
-    }
-    spawn(
+    let fc = net(slot, &ids[0]);
+    fleet.spawn(
         &mut children,
         &exe_dir,
-        &opts.log_dir,
+        log_dir,
         "forecaster",
         "forecaster",
         fc,

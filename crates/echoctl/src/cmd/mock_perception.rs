@@ -59,8 +59,9 @@ pub struct Args {
     /// robot plays B where B stood when the two were closest: the partner walks up to the robot).
     #[arg(long)]
     pub robot_plays_b: bool,
-    /// Play a human–robot mission's partner (`echo_sim::mission`: mission, wave, handshake,
-    /// handover, high-five, walk-up); the robot plays the other person.
+    /// Play a human–robot mission's partner: a scenario file, or its name under
+    /// `deploy/scenarios/` (mission, wave, handshake, handover, high-five, walk-up); the robot
+    /// plays the other person.
     #[arg(long, conflicts_with = "clip")]
     pub scenario: Option<String>,
     /// Replay person A of a real two-person capture (two BVH files, one clock) as the partner;
@@ -75,7 +76,8 @@ pub struct Args {
     pub capture_prompt: String,
 }
 
-/// The mission the partner performs: a named scenario, or person A of a real capture.
+/// The mission the partner performs: a scenario (file or name under the deployment directory's
+/// `scenarios/`), or person A of a real capture.
 pub fn mission_of(
     scenario: Option<&str>,
     capture: Option<&[PathBuf]>,
@@ -99,14 +101,14 @@ pub fn mission_of(
             "capture {}",
             a.file_stem().unwrap_or_default().to_string_lossy()
         );
-        return Ok(Some(Mission::from_clips(
+        return Ok(Some(Mission::from_clip(
             &name,
-            &[(clip, format!("{} + {}", a.display(), b.display()))],
+            clip,
+            format!("{} + {}", a.display(), b.display()),
         )));
     }
-    scenario
-        .map(|s| Mission::named(s).map_err(|e| anyhow::anyhow!(e)))
-        .transpose()
+    let deploy = echo_assets::deploy_dir(std::path::Path::new("deploy"));
+    Ok(scenario.map(|s| Mission::load(s, &deploy)).transpose()?)
 }
 
 /// The generated clip named by `<split>:<index>`.

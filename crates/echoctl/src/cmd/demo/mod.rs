@@ -4,7 +4,8 @@
 //!
 //! By default the robot meets a person: the HRI forecaster (`models/hri`) plans its motion,
 //! the partner performs a mission (walk up and shake hands, hand an object over, wave
-//! goodbye; `--scenario` picks one interaction, `--capture` replays a real capture), the demo
+//! goodbye; `--scenario` picks another scenario file of `deploy/scenarios/`, such as one
+//! interaction, or a file of your own; `--capture` replays a real capture), the demo
 //! announces each interaction on `prompt`, and the summary says per interaction what the robot
 //! did ([`mission`]). `--scenario watch` runs the human–human forecaster on the scripted partner
 //! (the robot only watches), `--scenario imitation` the retargeter's mirroring.
@@ -44,8 +45,8 @@ pub struct Args {
     /// Robot id.
     #[arg(long, default_value = "tiago")]
     pub robot: String,
-    /// What happens: a human–robot mission (mission, wave, handshake, handover, high-five,
-    /// walk-up), `watch` (the human–human forecaster watches the scripted partner; the robot
+    /// What happens: a human–robot mission — a scenario file, or its name under
+    /// `deploy/scenarios/` (mission, wave, handshake, handover, high-five, walk-up) — `watch` (the human–human forecaster watches the scripted partner; the robot
     /// holds) or `imitation` (the robot mirrors the partner through the retargeter).
     #[arg(long, default_value = "mission")]
     pub scenario: String,
@@ -514,8 +515,8 @@ impl Setup {
             ("imitation", None) => (None, true),
             (s, None) => (
                 Some(
-                    echo_sim::mission::Mission::named(s)
-                        .map_err(|e| anyhow!("--scenario: {e}, watch or imitation"))?,
+                    echo_sim::mission::Mission::load(s, &echo_assets::deploy_dir(&args.deploy_dir))
+                        .map_err(|e| anyhow!("--scenario: {e}; or watch, imitation"))?,
                 ),
                 false,
             ),
@@ -539,7 +540,16 @@ impl Setup {
                 v.extend(["--capture-prompt".into(), args.capture_prompt.clone()]);
                 v
             }
-            (None, true) => vec!["--scenario".into(), args.scenario.clone()],
+            // The file itself, absolute: the partner's process may run elsewhere.
+            (None, true) => {
+                let deploy = echo_assets::deploy_dir(&args.deploy_dir);
+                let file = echo_sim::mission::scenario_path(&args.scenario, &deploy)
+                    .ok()
+                    .and_then(|p| std::fs::canonicalize(p).ok())
+                    .map(|p| p.display().to_string())
+                    .unwrap_or_else(|| args.scenario.clone());
+                vec!["--scenario".into(), file]
+            }
         };
         let t0 = match human_robot {
             true => vec!["--t0-ns".to_string(), self.t0_ns.to_string()],
