@@ -71,6 +71,23 @@ fn demo_from_pictures_needs_a_folder_of_them_and_no_scenario() {
 }
 
 #[test]
+fn a_human_robot_checkpoint_in_the_human_table_is_a_clear_error() {
+    let out = echoctl(&[
+        "eval",
+        "--split",
+        "test",
+        "--clips-per-kind",
+        "1",
+        "--model",
+        "models/hri",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("evaluate it with --hri"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
 fn a_scenario_file_of_ones_own_is_checked() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("mine.json");

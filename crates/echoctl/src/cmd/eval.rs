@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{anyhow, Result};
 use echo_eval::harness::{markdown_per_kind, markdown_responder, markdown_table};
-use echo_eval::window::{windows, ConstantVelocity, ZeroVelocity};
+use echo_eval::window::{horizon_frame, windows, ConstantVelocity, ZeroVelocity, HORIZONS_S};
 use echo_eval::{evaluate, Predictor, Report, Symmetrized};
 use echo_motion::synth::{generate_split, Split, KINDS};
 use echo_train::CheckpointPredictor;
@@ -382,6 +382,21 @@ pub fn run(args: Args) -> Result<()> {
         .collect();
     for stem in &args.model {
         let ck = echo_models::Checkpoint::load(stem, &candle_core::Device::Cpu)?;
+        // The table's horizons need 1.5 s of two people; a human–robot model forecasts a robot.
+        if ck.meta.hri_training.is_some() {
+            anyhow::bail!(
+                "{}: a human–robot checkpoint (agent B is the robot); evaluate it with --hri",
+                stem.display()
+            );
+        }
+        let need = horizon_frame(HORIZONS_S[HORIZONS_S.len() - 1]);
+        if ck.meta.model.pred < need {
+            anyhow::bail!(
+                "{}: predicts {} frames; this table needs {need} (1.5 s at 15 Hz)",
+                stem.display(),
+                ck.meta.model.pred
+            );
+        }
         let name = stem
             .file_name()
             .map(|s| s.to_string_lossy().into_owned())
