@@ -2,6 +2,8 @@
 //! kinematic points: shoulders, elbows, wrists, grippers, head) against the retargeted reference,
 //! F1 of contact (surfaces touch) and proximity (within 5 cm) of the forecast robot with the true
 //! human against the original human pair, and the head rotation error against the reference.
+//! And the model's other half, the human partner's forecast ([`human_part`]): its JPE and AJPE
+//! against what the person did, next to zero and constant velocity.
 
 use anyhow::Result;
 use candle_core::Device;
@@ -185,6 +187,127 @@ pub fn evaluate(
         f1_proximity: proximity.f1(),
         head_error: head / head_n.max(1) as f64,
     })
+}
+
+/// The human agent's forecasts of one method, scored: mean errors in mm at [`HORIZON_FRAMES`].
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct HumanReport {
+    /// Method.
+    pub name: String,
+    /// Windows.
+    pub windows: usize,
+    /// JPE of the 22 joints at the horizons, mm.
+    pub jpe: Vec<f64>,
+    /// AJPE (pelvis-aligned), mm.
+    pub ajpe: Vec<f64>,
+}
+
+/// The human partner's forecasts (world joints per future frame) of zero velocity, constant
+/// velocity (the last observed step repeated) and, with a model, the model's social forecast.
+pub fn human_part(
+    ws: &[&HriWindow],
+    model: Option<(
+        &Forecaster,
+        Option<&SentenceEncoder>,
+        Option<&crate::codec::RobotCodec>,
+    )>,
+) -> Result<Vec<HumanReport>> {
+    use echo_models::features::decode;
+    type Joints = [Vector3<f64>; echo_motion::skeleton::NUM_JOINTS];
+    let truth: Vec<Vec<Joints>> = ws
+        .iter()
+        .map(|w| w.human[OBS..].iter().map(|f| decode(&w.canon, f)).collect())
+        .collect();
+    let last = |w: &HriWindow| decode(&w.canon, &w.human[OBS - 1]);
+    let prev = |w: &HriWindow| decode(&w.canon, &w.human[OBS - 2]);
+    let zv: Vec<Vec<Joints>> = ws.iter().map(|w| vec![last(w); PRED]).collect();
+    let cv: Vec<Vec<Joints>> = ws
+        .iter()
+        .map(|w| {
+            let (l, p) = (last(w), prev(w));
+            (1..=PRED)
+                .map(|k| std::array::from_fn(|j| l[j] + (l[j] - p[j]) * k as f64))
+                .collect()
+        })
+        .collect();
+    let mut out = vec![
+        score_human("zero-velocity", &zv, &truth),
+        score_human("constant velocity", &cv, &truth),
+    ];
+    if let Some((m, text, codec)) = model {
+        let cfg = m.config();
+        let txt = match (text, cfg.text_dim > 0) {
+            (Some(e), true) => {
+                let prompts: Vec<&str> = ws
+                    .iter()
+                    .map(|w| w.texts.first().map(|s| s.as_str()).unwrap_or(""))
+                    .collect();
+                Some(e.embed(&prompts)?.concat())
+            }
+            _ => None,
+        };
+        let b = batch(ws, txt, cfg.text_dim, &Device::Cpu)?;
+        let f = crate::train::forecast_human(m, &b, codec)?;
+        let pred: Vec<Vec<Joints>> = ws
+            .iter()
+            .zip(&f)
+            .map(|(w, frames)| frames.iter().map(|x| decode(&w.canon, x)).collect())
+            .collect();
+        out.push(score_human("model", &pred, &truth));
+    }
+    Ok(out)
+}
+
+fn score_human(
+    name: &str,
+    pred: &[Vec<[Vector3<f64>; echo_motion::skeleton::NUM_JOINTS]>],
+    truth: &[Vec<[Vector3<f64>; echo_motion::skeleton::NUM_JOINTS]>],
+) -> HumanReport {
+    let h = HORIZON_FRAMES.len();
+    let (mut jpe, mut ajpe) = (vec![0.0; h], vec![0.0; h]);
+    for (p, t) in pred.iter().zip(truth) {
+        for (i, &k) in HORIZON_FRAMES.iter().enumerate() {
+            let (p, t) = (&p[k], &t[k]);
+            let n = p.len() as f64;
+            jpe[i] += p.iter().zip(t).map(|(a, b)| (a - b).norm()).sum::<f64>() / n;
+            let (pa, ta) = (p[0], t[0]);
+            ajpe[i] += p
+                .iter()
+                .zip(t)
+                .map(|(a, b)| ((a - pa) - (b - ta)).norm())
+                .sum::<f64>()
+                / n;
+        }
+    }
+    let n = pred.len().max(1) as f64;
+    HumanReport {
+        name: name.into(),
+        windows: pred.len(),
+        jpe: jpe.into_iter().map(|x| x / n * 1e3).collect(),
+        ajpe: ajpe.into_iter().map(|x| x / n * 1e3).collect(),
+    }
+}
+
+/// The human reports as a markdown table.
+pub fn markdown_human(reports: &[HumanReport]) -> String {
+    let mut s = String::from(
+        "| method | JPE 0.2 | JPE 0.5 | JPE 1.0 | AJPE 0.2 | AJPE 0.5 | AJPE 1.0 |\n|---|---|---|---|---|---|---|\n",
+    );
+    let v = |x: &[f64]| {
+        x.iter()
+            .map(|v| format!("{v:.1}"))
+            .collect::<Vec<_>>()
+            .join(" | ")
+    };
+    for r in reports {
+        s.push_str(&format!(
+            "| {} | {} | {} |\n",
+            r.name,
+            v(&r.jpe),
+            v(&r.ajpe)
+        ));
+    }
+    s
 }
 
 /// The reports as a markdown table.

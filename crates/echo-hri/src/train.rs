@@ -291,6 +291,16 @@ pub fn forecast(
     sb.to_vec3::<f32>()
 }
 
+/// The social forecast of the human agent (window features per future frame) of a batch.
+pub fn forecast_human(
+    model: &Forecaster,
+    b: &Batch,
+    codec: Option<&RobotCodec>,
+) -> candle_core::Result<Vec<Vec<Vec<f32>>>> {
+    let ([sa, _], _) = forward(model, b, codec)?;
+    sa.to_vec3::<f32>()
+}
+
 /// Prompt embeddings of every distinct description.
 pub fn embed_texts(enc: &SentenceEncoder, ws: &[HriWindow]) -> Result<HashMap<String, Vec<f32>>> {
     let mut texts: Vec<&str> = ws
