@@ -1,6 +1,9 @@
 //! System-test harness: starts Echo services as real OS processes, each with its own Zenoh
 //! peer session on free loopback ports (explicit endpoints, no multicast), waits for their
 //! liveliness tokens, and always stops them (SIGTERM, then SIGKILL: `echo_launch`) when dropped.
+//! The pipeline's services start as the placement profiles describe them
+//! ([`Harness::spawn_service`]: what `echoctl up` and `echoctl demo` run); a test's own stimuli
+//! and tools (the mock perception's clip, a recorder, a replay) with the flags the test needs.
 
 pub mod attack;
 pub mod netns;

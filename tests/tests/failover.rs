@@ -46,8 +46,18 @@ fn from_pid(source: &str, pid: u32) -> bool {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn standby_takes_over_when_the_primary_dies() -> anyhow::Result<()> {
     let mut h = Harness::new("sys-failover", 7)?;
-    h.spawn("mock-robot", "echoctl", &["mock-robot"])?;
-    h.spawn("perception-bridge", "perception-bridge", &[])?;
+    h.spawn_service(
+        "single",
+        "mock-robot",
+        &echo_system_tests::profile_vars(),
+        &[],
+    )?;
+    h.spawn_service(
+        "single",
+        "perception-bridge",
+        &echo_system_tests::profile_vars(),
+        &[],
+    )?;
     h.spawn(
         "mock-perception",
         "echoctl",

@@ -11,7 +11,12 @@ use echo_system_tests::Harness;
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn safety_reads_and_writes_ros2_cdr() -> anyhow::Result<()> {
     let mut h = Harness::new("sys-ros2", 1)?;
-    h.spawn("safety", "safety", &["--ros2-namespace", "/tiago_sim"])?;
+    h.spawn_service(
+        "robot",
+        "safety",
+        &echo_system_tests::profile_vars(),
+        &["--ros2-namespace", "/tiago_sim"],
+    )?;
     let bus = h.bus("ros2-bridge").await?;
     h.wait_alive(&bus, &["safety"], Duration::from_secs(30))
         .await?;
