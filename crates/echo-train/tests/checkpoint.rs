@@ -179,7 +179,7 @@ fn shipped_checkpoint_beats_both_baselines_on_a_held_out_real_walking_capture() 
 /// beside the repository, unless ECHO_REQUIRE_ASSETS=1. Ignored until a shipped model passes
 /// it: the shipped forecaster predicts the stop but not the step back, and loses to holding the
 /// pose at 1.0 and 1.5 s (docs/RESULTS.md, "Real people"); run it with
-/// `cargo test -p echo-models --test checkpoint -- --ignored`.
+/// `cargo test -p echo-train --test checkpoint -- --ignored`.
 #[test]
 #[ignore = "the shipped forecaster does not yet forecast the step back after a handshake (docs/RESULTS.md)"]
 fn shipped_checkpoint_beats_both_baselines_on_a_real_handshake_capture() {

@@ -212,10 +212,17 @@ pub(crate) fn forecaster(stem: &std::path::Path, samples: usize) -> Result<Vec<M
     let mut ck = Checkpoint::load(stem, &dev)?;
     let cfg = ck.meta.model.clone();
     let text = ck.text.take();
-    let mut backends: Vec<Box<dyn Backend>> = vec![Box::new(CandleBackend::new(ck, dev))];
-    match echo_onnx::OrtBackend::from_checkpoint(stem, cfg.clone(), 0) {
-        Ok(b) => backends.push(Box::new(b)),
-        Err(e) => println!("onnxruntime: not measured ({e})"),
+    let mut backends: Vec<(String, Box<dyn Backend>)> = vec![(
+        "candle-cpu".into(),
+        Box::new(CandleBackend::new(ck, dev)),
+    )];
+    // ONNX Runtime with its own choice of intra-op threads (one per core), and with one thread:
+    // a model this small spends much of a batch-1 call handing work to the pool.
+    for (label, threads) in [("onnxruntime-cpu", 0), ("onnxruntime-cpu-1t", 1)] {
+        match echo_onnx::OrtBackend::from_checkpoint(stem, cfg.clone(), threads) {
+            Ok(b) => backends.push((label.into(), Box::new(b))),
+            Err(e) => println!("{label}: not measured ({e})"),
+        }
     }
     let prompt = "One person extends a handshake with their right hand, while the other reciprocates with their own.";
     let emb = match &text {
@@ -248,7 +255,7 @@ pub(crate) fn forecaster(stem: &std::path::Path, samples: usize) -> Result<Vec<M
         let ws: Vec<&echo_eval::Window> = windows.iter().cycle().take(b).collect();
         let (_, obs) = echo_train::encode_observed(&ws, cfg.obs);
         let text: Vec<f32> = (0..b).flat_map(|_| emb.iter().copied()).collect();
-        for be in backends.iter_mut() {
+        for (label, be) in backends.iter_mut() {
             for _ in 0..10 {
                 be.predict(b, &obs, &text)?;
             }
@@ -260,8 +267,8 @@ pub(crate) fn forecaster(stem: &std::path::Path, samples: usize) -> Result<Vec<M
                 v.push(t.elapsed().as_secs_f64() * 1e3);
             }
             let n = v.len();
-            let median = report(&format!("forecaster {} batch {b}", be.name()), v);
-            out.push((be.name(), b, median, n));
+            let median = report(&format!("forecaster {label} batch {b}"), v);
+            out.push((label.clone(), b, median, n));
         }
     }
     Ok(out)
