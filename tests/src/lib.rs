@@ -135,6 +135,16 @@ impl Harness {
         self.spawn(&spec.name, &spec.program, &args)
     }
 
+    /// Start the services `names` of placement profile `profile`, in that order, with the
+    /// harness's placeholder values ([`profile_vars`]) and no extra arguments.
+    pub fn spawn_services(&mut self, profile: &str, names: &[&str]) -> Result<()> {
+        let vars = profile_vars();
+        for n in names {
+            self.spawn_service(profile, n, &vars, &[])?;
+        }
+        Ok(())
+    }
+
     /// Start every service of placement profile `profile` in its order
     /// ([`Harness::spawn_service`] without extra arguments); returns their names.
     pub fn spawn_profile(&mut self, profile: &str, vars: &Vars) -> Result<Vec<String>> {
@@ -289,11 +299,7 @@ pub const HRI_SERVICES: [&str; 4] = ["mock-robot", "perception-bridge", "forecas
 /// (`models/hri`) and the safety service requiring the robot ([`HRI_SERVICES`]; the partner,
 /// mock perception, is started by the test).
 pub fn spawn_hri_pipeline(h: &mut Harness) -> Result<()> {
-    let vars = profile_vars();
-    for s in HRI_SERVICES {
-        h.spawn_service("demo", s, &vars, &[])?;
-    }
-    Ok(())
+    h.spawn_services("demo", &HRI_SERVICES)
 }
 
 /// The human–robot pipeline started ([`spawn_hri_pipeline`]) on a fresh mesh for `robot`, the

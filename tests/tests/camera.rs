@@ -117,18 +117,7 @@ async fn photos_in_tracked_skeletons_out() -> anyhow::Result<()> {
         std::fs::copy(&photo, dir.path().join(format!("frame_{k:03}.png")))?;
     }
     let mut h = Harness::new("sys-camera", 3)?;
-    h.spawn_service(
-        "single",
-        "mock-robot",
-        &echo_system_tests::profile_vars(),
-        &[],
-    )?;
-    h.spawn_service(
-        "single",
-        "perception-bridge",
-        &echo_system_tests::profile_vars(),
-        &[],
-    )?;
+    h.spawn_services("single", &["mock-robot", "perception-bridge"])?;
     let images = dir.path().to_str().unwrap_or_default();
     h.spawn(
         "pose-estimator",

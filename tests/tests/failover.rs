@@ -46,18 +46,7 @@ fn from_pid(source: &str, pid: u32) -> bool {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn standby_takes_over_when_the_primary_dies() -> anyhow::Result<()> {
     let mut h = Harness::new("sys-failover", 7)?;
-    h.spawn_service(
-        "single",
-        "mock-robot",
-        &echo_system_tests::profile_vars(),
-        &[],
-    )?;
-    h.spawn_service(
-        "single",
-        "perception-bridge",
-        &echo_system_tests::profile_vars(),
-        &[],
-    )?;
+    h.spawn_services("single", &["mock-robot", "perception-bridge"])?;
     h.spawn(
         "mock-perception",
         "echoctl",

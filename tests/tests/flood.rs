@@ -52,10 +52,7 @@ async fn services_survive_a_flood_of_bad_input() -> anyhow::Result<()> {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let fc_model = root.join("models/forecaster");
     let mut h = Harness::new("sys-flood", 6)?;
-    let vars = echo_system_tests::profile_vars();
-    for s in ["mock-robot", "perception-bridge", "safety"] {
-        h.spawn_service("single", s, &vars, &[])?;
-    }
+    h.spawn_services("single", &["mock-robot", "perception-bridge", "safety"])?;
     h.spawn(
         "forecaster",
         "forecaster",
@@ -66,7 +63,7 @@ async fn services_survive_a_flood_of_bad_input() -> anyhow::Result<()> {
             "zero-velocity",
         ],
     )?;
-    h.spawn_service("single", "retargeter", &vars, &[])?;
+    h.spawn_services("single", &["retargeter"])?;
     h.spawn("mock-perception", "echoctl", &["mock-perception"])?;
     let bus = h.bus("flooder").await?;
     let robot: RobotId = bus.robot().clone();

@@ -32,18 +32,7 @@ async fn forecasts_beat_zero_velocity_on_a_scripted_interaction() -> anyhow::Res
     let model = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/forecaster");
     let mut h = Harness::new("sys-forecast", 4)?;
     let t0 = now_ns() + 3_000_000_000;
-    h.spawn_service(
-        "single",
-        "mock-robot",
-        &echo_system_tests::profile_vars(),
-        &[],
-    )?;
-    h.spawn_service(
-        "single",
-        "perception-bridge",
-        &echo_system_tests::profile_vars(),
-        &[],
-    )?;
+    h.spawn_services("single", &["mock-robot", "perception-bridge"])?;
     let vars = echo_system_tests::profile_vars()
         .set("forecaster_model", model.to_str().unwrap_or_default());
     h.spawn_service("demo", "forecaster", &vars, &[])?;

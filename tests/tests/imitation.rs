@@ -31,10 +31,10 @@ async fn query(
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_robot_imitates_the_partner_through_the_safety_filter() -> anyhow::Result<()> {
     let mut h = Harness::new("sys-imitation", 5)?;
-    let vars = echo_system_tests::profile_vars();
-    for s in ["mock-robot", "perception-bridge", "retargeter", "safety"] {
-        h.spawn_service("single", s, &vars, &[])?;
-    }
+    h.spawn_services(
+        "single",
+        &["mock-robot", "perception-bridge", "retargeter", "safety"],
+    )?;
     let t0 = now_ns() + 2_000_000_000;
     h.spawn(
         "mock-perception",

@@ -29,12 +29,7 @@ async fn skeletons_match_ground_truth_while_the_head_moves() -> anyhow::Result<(
             "3",
         ],
     )?;
-    h.spawn_service(
-        "single",
-        "perception-bridge",
-        &echo_system_tests::profile_vars(),
-        &[],
-    )?;
+    h.spawn_services("single", &["perception-bridge"])?;
     h.spawn(
         "mock-perception",
         "echoctl",
@@ -136,18 +131,7 @@ fn frame_json(robot: &str, source: &str, seq: u64, stamp_ns: u64) -> KeypointFra
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_inputs_are_rejected_counted_and_visible_in_status() -> anyhow::Result<()> {
     let mut h = Harness::new("sys-badinput", 3)?;
-    h.spawn_service(
-        "single",
-        "mock-robot",
-        &echo_system_tests::profile_vars(),
-        &[],
-    )?;
-    h.spawn_service(
-        "single",
-        "perception-bridge",
-        &echo_system_tests::profile_vars(),
-        &[],
-    )?;
+    h.spawn_services("single", &["mock-robot", "perception-bridge"])?;
     h.spawn("mock-perception", "echoctl", &["mock-perception"])?;
     let bus = h.bus("attacker").await?;
     let robot = bus.robot().clone();

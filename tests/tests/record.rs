@@ -70,12 +70,7 @@ async fn record_then_replay_through_mcap() -> anyhow::Result<()> {
     let bus = h.bus("system-test").await?;
     let robot = bus.robot().clone();
     // The mock camera needs the robot's joint state to place itself.
-    h.spawn_service(
-        "single",
-        "mock-robot",
-        &echo_system_tests::profile_vars(),
-        &[],
-    )?;
+    h.spawn_services("single", &["mock-robot"])?;
     h.spawn(
         "mock-perception",
         "echoctl",

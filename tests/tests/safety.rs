@@ -100,9 +100,7 @@ impl Driver {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn plan_loss_stops_the_robot_and_resumption_has_no_jump() -> anyhow::Result<()> {
     let mut h = Harness::new("sys-safety", 2)?;
-    let vars = echo_system_tests::profile_vars();
-    h.spawn_service("single", "mock-robot", &vars, &[])?;
-    h.spawn_service("single", "safety", &vars, &[])?;
+    h.spawn_services("single", &["mock-robot", "safety"])?;
     let bus = h.bus("test-forecaster").await?;
     let robot = bus.robot().clone();
     let states = bus.subscribe(&topics::robot_state(&robot)).await?;

@@ -99,13 +99,12 @@ pub fn zero_velocity(ws: &[&HriWindow]) -> Vec<RobotForecast> {
         .collect()
 }
 
-/// The HRI model's forecasts (each window's first description as the prompt).
-pub fn model_forecasts(
+/// The model's input batch of `ws`, each window's first description as the prompt.
+fn model_batch(
     model: &Forecaster,
     text: Option<&SentenceEncoder>,
     ws: &[&HriWindow],
-    codec: Option<&crate::codec::RobotCodec>,
-) -> Result<Vec<RobotForecast>> {
+) -> Result<crate::train::Batch> {
     let cfg = model.config();
     let txt = match (text, cfg.text_dim > 0) {
         (Some(e), true) => {
@@ -117,7 +116,17 @@ pub fn model_forecasts(
         }
         _ => None,
     };
-    let b = batch(ws, txt, cfg.text_dim, &Device::Cpu)?;
+    Ok(batch(ws, txt, cfg.text_dim, &Device::Cpu)?)
+}
+
+/// The HRI model's forecasts (each window's first description as the prompt).
+pub fn model_forecasts(
+    model: &Forecaster,
+    text: Option<&SentenceEncoder>,
+    ws: &[&HriWindow],
+    codec: Option<&crate::codec::RobotCodec>,
+) -> Result<Vec<RobotForecast>> {
+    let b = model_batch(model, text, ws)?;
     let out = crate::train::forecast(model, &b, codec)?;
     Ok(ws
         .iter()
@@ -235,18 +244,7 @@ pub fn human_part(
         score_human("constant velocity", &cv, &truth),
     ];
     if let Some((m, text, codec)) = model {
-        let cfg = m.config();
-        let txt = match (text, cfg.text_dim > 0) {
-            (Some(e), true) => {
-                let prompts: Vec<&str> = ws
-                    .iter()
-                    .map(|w| w.texts.first().map(|s| s.as_str()).unwrap_or(""))
-                    .collect();
-                Some(e.embed(&prompts)?.concat())
-            }
-            _ => None,
-        };
-        let b = batch(ws, txt, cfg.text_dim, &Device::Cpu)?;
+        let b = model_batch(m, text, ws)?;
         let f = crate::train::forecast_human(m, &b, codec)?;
         let pred: Vec<Vec<Joints>> = ws
             .iter()
