@@ -74,6 +74,11 @@ pub struct HriTrainConfig {
     /// The retargeter's encoder/decoder, frozen, wrap the robot agent ([`crate::codec`]).
     #[serde(default)]
     pub frozen_retargeter: bool,
+    /// Share of training windows whose observed robot frames are all replaced by the last one
+    /// (a robot standing still, as the real one often is when a person comes; the future, a
+    /// displacement from that last frame, is unchanged).
+    #[serde(default)]
+    pub still_robot: f64,
 }
 
 impl Default for HriTrainConfig {
@@ -93,6 +98,7 @@ impl Default for HriTrainConfig {
             social: Social::Adaptive,
             seed: 1,
             frozen_retargeter: false,
+            still_robot: 0.0,
         }
     }
 }
@@ -184,6 +190,18 @@ pub fn batch(
     text_dim: usize,
     dev: &Device,
 ) -> candle_core::Result<Batch> {
+    batch_held(ws, text, text_dim, dev, &[])
+}
+
+/// [`batch`], with the robot's observed frames held at the last one in the windows `held`
+/// marks (missing entries: not held).
+pub fn batch_held(
+    ws: &[&HriWindow],
+    text: Option<Vec<f32>>,
+    text_dim: usize,
+    dev: &Device,
+    held: &[bool],
+) -> candle_core::Result<Batch> {
     let n = ws.len();
     let mut oa = vec![];
     let mut ob = vec![];
@@ -191,12 +209,13 @@ pub fn batch(
     let mut fb = vec![];
     let mut rw = vec![];
     let mut w = vec![];
-    for x in ws {
+    for (i, x) in ws.iter().enumerate() {
         for f in &x.human[..OBS] {
             oa.extend_from_slice(f);
         }
+        let hold = held.get(i).copied().unwrap_or(false);
         for f in &x.robot[..OBS] {
-            ob.extend_from_slice(f);
+            ob.extend_from_slice(if hold { &x.robot[OBS - 1] } else { f });
         }
         for f in &x.human[OBS..] {
             fa.extend_from_slice(f);
@@ -366,7 +385,11 @@ pub fn train(
                     })
                     .collect::<Vec<f32>>()
             });
-            let b = batch(&ws, txt, cfg.text_dim, &dev)?;
+            let held: Vec<bool> = ws
+                .iter()
+                .map(|_| t.still_robot > 0.0 && rng.random::<f64>() < t.still_robot)
+                .collect();
+            let b = batch_held(&ws, txt, cfg.text_dim, &dev, &held)?;
             let (l, parts) = loss(&model, fk, t, &b, codec)?;
             anyhow::ensure!(
                 parts.total.is_finite(),
@@ -400,4 +423,44 @@ pub fn train(
         }
     }
     Ok((vm, log))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_held_window_shows_a_still_robot_ending_where_it_ended() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let model = echo_robot::RobotModel::tiago_dual();
+        let r = Retargeter::load(&root.join("models/retargeter"), model).unwrap();
+        let clips =
+            echo_motion::synth::generate_split(echo_motion::synth::Split::Train, 0..1, 1, &|| {});
+        let ws = crate::data::windows(&echo_retarget::hri::convert(&clips[0], &r).unwrap(), 6);
+        let refs: Vec<&HriWindow> = ws.iter().take(2).collect();
+        let dev = Device::Cpu;
+        let plain = batch(&refs, None, 0, &dev).unwrap();
+        let held = batch_held(&refs, None, 0, &dev, &[false, true]).unwrap();
+        let (p, h) = (
+            plain.obs_b.to_vec3::<f32>().unwrap(),
+            held.obs_b.to_vec3::<f32>().unwrap(),
+        );
+        // The first window is untouched; the second holds its last frame throughout.
+        assert_eq!(p[0], h[0]);
+        assert!(h[1].iter().all(|f| *f == p[1][OBS - 1]));
+        assert_ne!(
+            p[1][0],
+            p[1][OBS - 1],
+            "the reference robot moved in this window"
+        );
+        // Everything else, futures included, is as before.
+        assert_eq!(
+            plain.fut_b.to_vec3::<f32>().unwrap(),
+            held.fut_b.to_vec3::<f32>().unwrap()
+        );
+        assert_eq!(
+            plain.obs_a.to_vec3::<f32>().unwrap(),
+            held.obs_a.to_vec3::<f32>().unwrap()
+        );
+    }
 }

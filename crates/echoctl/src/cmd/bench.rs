@@ -212,10 +212,8 @@ pub(crate) fn forecaster(stem: &std::path::Path, samples: usize) -> Result<Vec<M
     let mut ck = Checkpoint::load(stem, &dev)?;
     let cfg = ck.meta.model.clone();
     let text = ck.text.take();
-    let mut backends: Vec<(String, Box<dyn Backend>)> = vec![(
-        "candle-cpu".into(),
-        Box::new(CandleBackend::new(ck, dev)),
-    )];
+    let mut backends: Vec<(String, Box<dyn Backend>)> =
+        vec![("candle-cpu".into(), Box::new(CandleBackend::new(ck, dev)))];
     // ONNX Runtime with its own choice of intra-op threads (one per core), and with one thread:
     // a model this small spends much of a batch-1 call handing work to the pool.
     for (label, threads) in [("onnxruntime-cpu", 0), ("onnxruntime-cpu-1t", 1)] {

@@ -77,6 +77,10 @@ pub struct Args {
     /// HRI: wrap the robot agent in the retargeter's frozen encoder and decoder.
     #[arg(long)]
     pub freeze_retargeter: bool,
+    /// HRI: share of training windows (0–1) in which the robot's observed frames are held at
+    /// the last one (a robot that stood still; the future is unchanged).
+    #[arg(long, default_value_t = 0.0)]
+    pub still_robot: f64,
     /// HRI: retargeter checkpoint that turns person B into the robot.
     #[arg(long, default_value = "models/retargeter")]
     pub retargeter: PathBuf,
@@ -391,8 +395,14 @@ fn hri(args: &Args) -> Result<()> {
         social,
         seed: args.seed,
         frozen_retargeter: args.freeze_retargeter,
+        still_robot: args.still_robot,
         ..Default::default()
     };
+    anyhow::ensure!(
+        (0.0..=1.0).contains(&t.still_robot),
+        "--still-robot must be within 0–1, not {}",
+        t.still_robot
+    );
     let dev = candle_core::Device::Cpu;
     let text = SentenceEncoder::load_default(&dev)?;
     let codec = args
