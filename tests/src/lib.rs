@@ -145,16 +145,6 @@ impl Harness {
         Ok(())
     }
 
-    /// Start every service of placement profile `profile` in its order
-    /// ([`Harness::spawn_service`] without extra arguments); returns their names.
-    pub fn spawn_profile(&mut self, profile: &str, vars: &Vars) -> Result<Vec<String>> {
-        let p = Profile::load(profile, &repo().join("deploy"))?;
-        for spec in &p.services {
-            self.spawn_service(profile, &spec.name, vars, &[])?;
-        }
-        Ok(p.services.into_iter().map(|s| s.name).collect())
-    }
-
     /// Start `program` with exactly `args` (no mesh flags), e.g. a router with its own endpoints.
     pub fn spawn_raw(&mut self, label: &str, program: &str, args: &[&str]) -> Result<()> {
         self.start(ProcessSpec::new(

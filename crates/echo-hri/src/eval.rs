@@ -2,8 +2,8 @@
 //! kinematic points: shoulders, elbows, wrists, grippers, head) against the retargeted reference,
 //! F1 of contact (surfaces touch) and proximity (within 5 cm) of the forecast robot with the true
 //! human against the original human pair, and the head rotation error against the reference.
-//! And the model's other half, the human partner's forecast ([`human_part`]): its JPE and AJPE
-//! against what the person did, next to zero and constant velocity.
+//! And the model's other half, the human partner's forecast ([`human_forecast`]): its JPE and
+//! AJPE against what the person did, next to zero and constant velocity ([`human_baselines`]).
 
 use anyhow::Result;
 use candle_core::Device;
@@ -211,26 +211,26 @@ pub struct HumanReport {
     pub ajpe: Vec<f64>,
 }
 
-/// The human partner's forecasts (world joints per future frame) of zero velocity, constant
-/// velocity (the last observed step repeated) and, with a model, the model's social forecast.
-pub fn human_part(
-    ws: &[&HriWindow],
-    model: Option<(
-        &Forecaster,
-        Option<&SentenceEncoder>,
-        Option<&crate::codec::RobotCodec>,
-    )>,
-) -> Result<Vec<HumanReport>> {
+/// One person's joints (world) per future frame of a window.
+type Track = Vec<[Vector3<f64>; echo_motion::skeleton::NUM_JOINTS]>;
+
+/// The partner's true future in each window.
+fn partner_truth(ws: &[&HriWindow]) -> Vec<Track> {
     use echo_models::features::decode;
-    type Joints = [Vector3<f64>; echo_motion::skeleton::NUM_JOINTS];
-    let truth: Vec<Vec<Joints>> = ws
-        .iter()
+    ws.iter()
         .map(|w| w.human[OBS..].iter().map(|f| decode(&w.canon, f)).collect())
-        .collect();
+        .collect()
+}
+
+/// The partner's forecast by zero velocity and by constant velocity (the last observed step
+/// repeated), scored.
+pub fn human_baselines(ws: &[&HriWindow]) -> Vec<HumanReport> {
+    use echo_models::features::decode;
+    let truth = partner_truth(ws);
     let last = |w: &HriWindow| decode(&w.canon, &w.human[OBS - 1]);
     let prev = |w: &HriWindow| decode(&w.canon, &w.human[OBS - 2]);
-    let zv: Vec<Vec<Joints>> = ws.iter().map(|w| vec![last(w); PRED]).collect();
-    let cv: Vec<Vec<Joints>> = ws
+    let zv: Vec<Track> = ws.iter().map(|w| vec![last(w); PRED]).collect();
+    let cv: Vec<Track> = ws
         .iter()
         .map(|w| {
             let (l, p) = (last(w), prev(w));
@@ -239,50 +239,54 @@ pub fn human_part(
                 .collect()
         })
         .collect();
-    let mut out = vec![
+    vec![
         score_human("zero-velocity", &zv, &truth),
         score_human("constant velocity", &cv, &truth),
-    ];
-    if let Some((m, text, codec)) = model {
-        let b = model_batch(m, text, ws)?;
-        let f = crate::train::forecast_human(m, &b, codec)?;
-        let pred: Vec<Vec<Joints>> = ws
-            .iter()
-            .zip(&f)
-            .map(|(w, frames)| frames.iter().map(|x| decode(&w.canon, x)).collect())
-            .collect();
-        out.push(score_human("model", &pred, &truth));
-    }
-    Ok(out)
+    ]
 }
 
-fn score_human(
+/// The HRI model's forecast of the partner (its social forecast of the human agent), scored as
+/// `name`; the windows go through the model 64 at a time.
+pub fn human_forecast(
     name: &str,
-    pred: &[Vec<[Vector3<f64>; echo_motion::skeleton::NUM_JOINTS]>],
-    truth: &[Vec<[Vector3<f64>; echo_motion::skeleton::NUM_JOINTS]>],
-) -> HumanReport {
+    ws: &[&HriWindow],
+    model: &Forecaster,
+    text: Option<&SentenceEncoder>,
+    codec: Option<&crate::codec::RobotCodec>,
+) -> Result<HumanReport> {
+    use echo_models::features::decode;
+    let mut pred: Vec<Track> = Vec::with_capacity(ws.len());
+    for chunk in ws.chunks(64) {
+        let b = model_batch(model, text, chunk)?;
+        let f = crate::train::forecast_human(model, &b, codec)?;
+        pred.extend(chunk.iter().zip(&f).map(|(w, frames)| {
+            frames
+                .iter()
+                .map(|x| decode(&w.canon, x))
+                .collect::<Track>()
+        }));
+    }
+    Ok(score_human(name, &pred, &partner_truth(ws)))
+}
+
+/// Mean JPE and AJPE at [`HORIZON_FRAMES`] ([`echo_eval::metrics`]).
+fn score_human(name: &str, pred: &[Track], truth: &[Track]) -> HumanReport {
+    use echo_eval::metrics::{ajpe, jpe};
     let h = HORIZON_FRAMES.len();
-    let (mut jpe, mut ajpe) = (vec![0.0; h], vec![0.0; h]);
+    let (mut sj, mut sa) = (vec![0.0; h], vec![0.0; h]);
     for (p, t) in pred.iter().zip(truth) {
         for (i, &k) in HORIZON_FRAMES.iter().enumerate() {
-            let (p, t) = (&p[k], &t[k]);
-            let n = p.len() as f64;
-            jpe[i] += p.iter().zip(t).map(|(a, b)| (a - b).norm()).sum::<f64>() / n;
-            let (pa, ta) = (p[0], t[0]);
-            ajpe[i] += p
-                .iter()
-                .zip(t)
-                .map(|(a, b)| ((a - pa) - (b - ta)).norm())
-                .sum::<f64>()
-                / n;
+            let (p, t) = (vec![p[k]], vec![t[k]]);
+            sj[i] += jpe(&p, &t);
+            sa[i] += ajpe(&p, &t);
         }
     }
     let n = pred.len().max(1) as f64;
     HumanReport {
         name: name.into(),
         windows: pred.len(),
-        jpe: jpe.into_iter().map(|x| x / n * 1e3).collect(),
-        ajpe: ajpe.into_iter().map(|x| x / n * 1e3).collect(),
+        jpe: sj.into_iter().map(|x| x / n).collect(),
+        ajpe: sa.into_iter().map(|x| x / n).collect(),
     }
 }
 

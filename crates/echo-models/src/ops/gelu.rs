@@ -11,7 +11,7 @@
 
 use candle_core::{CpuStorage, CustomOp1, CustomOp2, Layout, Result, Shape, Tensor};
 
-use super::{has_avx2, slice};
+use super::{has_avx2, slice, with_grad};
 
 const SQRT_2_OVER_PI: f32 = 0.797_884_6;
 const CUBIC: f32 = 0.044_715;
@@ -142,10 +142,7 @@ impl CustomOp2 for GeluTanhGrad {
         s2: &CpuStorage,
         l2: &Layout,
     ) -> Result<(CpuStorage, Shape)> {
-        let (x, g) = (slice(s1, l1)?, slice(s2, l2)?);
-        if x.len() != g.len() {
-            candle_core::bail!("gelu gradient: {} values against {}", x.len(), g.len());
-        }
+        let (x, g) = with_grad("gelu", (s1, l1), (s2, l2))?;
         Ok((CpuStorage::F32(gelu_grad_slice(x, g)), l1.shape().clone()))
     }
 }

@@ -4,7 +4,7 @@
 
 use candle_core::{CpuStorage, CustomOp2, CustomOp3, Layout, Result, Shape, Tensor};
 
-use super::{fused, slice};
+use super::{fused, slice, with_grad};
 
 /// Layer norm of `x` over its last dimension with gain `gamma` and shift `beta` (both of that
 /// size): with a gradient to track, fused on the CPU; without, candle's parallel kernel;
@@ -103,15 +103,9 @@ impl CustomOp3 for LayerNormGradInput {
         s3: &CpuStorage,
         l3: &Layout,
     ) -> Result<(CpuStorage, Shape)> {
-        let (x, gamma, g) = (slice(s1, l1)?, slice(s2, l2)?, slice(s3, l3)?);
+        let (x, g) = with_grad("layer norm", (s1, l1), (s3, l3))?;
+        let gamma = slice(s2, l2)?;
         let n = gamma.len();
-        if g.len() != x.len() {
-            candle_core::bail!(
-                "layer norm gradient: {} values against {}",
-                g.len(),
-                x.len()
-            );
-        }
         let mut dx = vec![0f32; x.len()];
         let mut h = vec![0f32; n];
         let mut xh = vec![0f32; n];
@@ -154,14 +148,10 @@ impl CustomOp2 for LayerNormGradParams {
         s2: &CpuStorage,
         l2: &Layout,
     ) -> Result<(CpuStorage, Shape)> {
-        let (x, g) = (slice(s1, l1)?, slice(s2, l2)?);
+        let (x, g) = with_grad("layer norm", (s1, l1), (s2, l2))?;
         let n = l1.shape().dims().last().copied().unwrap_or(1);
-        if g.len() != x.len() || n == 0 {
-            candle_core::bail!(
-                "layer norm gradient: {} values against {}",
-                g.len(),
-                x.len()
-            );
+        if n == 0 {
+            candle_core::bail!("layer norm gradient: rows of no values");
         }
         let mut out = vec![0f32; 2 * n];
         let (dgamma, dbeta) = out.split_at_mut(n);

@@ -42,6 +42,20 @@ pub(crate) fn slice<'a>(s: &'a CpuStorage, l: &Layout) -> Result<&'a [f32]> {
     }
 }
 
+/// A tensor's values and the gradient arriving for them, as slices of equal length (`what`
+/// names the operation in the error).
+pub(crate) fn with_grad<'a>(
+    what: &str,
+    (s1, l1): (&'a CpuStorage, &Layout),
+    (s2, l2): (&'a CpuStorage, &Layout),
+) -> Result<(&'a [f32], &'a [f32])> {
+    let (x, g) = (slice(s1, l1)?, slice(s2, l2)?);
+    if x.len() != g.len() {
+        candle_core::bail!("{what} gradient: {} values against {}", g.len(), x.len());
+    }
+    Ok((x, g))
+}
+
 /// Whether `x` takes the fused CPU path.
 pub(crate) fn fused(x: &candle_core::Tensor) -> bool {
     x.device().is_cpu() && x.dtype() == candle_core::DType::F32

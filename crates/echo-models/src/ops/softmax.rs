@@ -3,7 +3,7 @@
 
 use candle_core::{CpuStorage, CustomOp1, CustomOp2, Layout, Result, Shape, Tensor, D};
 
-use super::{fused, slice};
+use super::{fused, slice, with_grad};
 
 /// Softmax of `x` over its last dimension: with a gradient to track, fused on the CPU;
 /// without, candle's parallel kernel; candle's composed operations on other devices.
@@ -82,11 +82,8 @@ impl CustomOp2 for SoftmaxGrad {
         s2: &CpuStorage,
         l2: &Layout,
     ) -> Result<(CpuStorage, Shape)> {
-        let (y, g) = (slice(s1, l1)?, slice(s2, l2)?);
+        let (y, g) = with_grad("softmax", (s1, l1), (s2, l2))?;
         let n = l1.shape().dims().last().copied().unwrap_or(1).max(1);
-        if y.len() != g.len() {
-            candle_core::bail!("softmax gradient: {} values against {}", g.len(), y.len());
-        }
         let mut dx = vec![0f32; y.len()];
         for ((yr, gr), dr) in y
             .chunks_exact(n)

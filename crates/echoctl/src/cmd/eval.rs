@@ -138,43 +138,11 @@ fn spec_windows(args: &Args) -> Result<Option<(Vec<echo_eval::window::Window>, S
     Ok(Some((w, format!("data {spec}: {}", desc.join(", ")))))
 }
 
-/// Per-chunk human reports (zero velocity, constant velocity, model) pooled over the windows.
-fn pool_human(chunks: &[Vec<echo_hri::eval::HumanReport>]) -> Vec<echo_hri::eval::HumanReport> {
-    let Some(first) = chunks.first() else {
-        return vec![];
-    };
-    first
-        .iter()
-        .enumerate()
-        .map(|(i, r0)| {
-            let n: usize = chunks.iter().map(|c| c[i].windows).sum();
-            let pool = |f: fn(&echo_hri::eval::HumanReport) -> &Vec<f64>| -> Vec<f64> {
-                (0..f(r0).len())
-                    .map(|k| {
-                        chunks
-                            .iter()
-                            .map(|c| f(&c[i])[k] * c[i].windows as f64)
-                            .sum::<f64>()
-                            / n.max(1) as f64
-                    })
-                    .collect()
-            };
-            echo_hri::eval::HumanReport {
-                name: r0.name.clone(),
-                windows: n,
-                jpe: pool(|r| &r.jpe),
-                ajpe: pool(|r| &r.ajpe),
-            }
-        })
-        .collect()
-}
-
 fn hri(args: &Args, split: Split) -> Result<()> {
     use echo_hri::eval::{
-        evaluate as score, human_part, markdown, markdown_human, model_forecasts, reference,
-        zero_velocity,
+        evaluate as score, human_baselines, human_forecast, markdown, markdown_human,
+        model_forecasts, reference, zero_velocity,
     };
-    let mut humans: Vec<(String, Vec<Vec<echo_hri::eval::HumanReport>>)> = vec![];
     let model = echo_robot::RobotModel::tiago_dual();
     let body = echo_robot::collision::RobotBody::tiago(&model)?;
     let r = echo_retarget::Retargeter::load(&args.with_retargeter, model.clone())?;
@@ -199,6 +167,7 @@ fn hri(args: &Args, split: Split) -> Result<()> {
             &body,
         )?,
     ];
+    let mut humans = vec![];
     for stem in &args.hri {
         let ck = echo_models::Checkpoint::load(stem, &candle_core::Device::Cpu)?;
         let frozen = ck
@@ -222,14 +191,13 @@ fn hri(args: &Args, split: Split) -> Result<()> {
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
         reports.push(score(&name, &refs, &fc, &r, &model, &body)?);
-        let mut people = vec![];
-        for chunk in refs.chunks(64) {
-            people.push(human_part(
-                chunk,
-                Some((&ck.model, ck.text.as_ref(), codec.as_ref())),
-            )?);
-        }
-        humans.push((name, people));
+        humans.push(human_forecast(
+            &name,
+            &refs,
+            &ck.model,
+            ck.text.as_ref(),
+            codec.as_ref(),
+        )?);
     }
     println!(
         "split {} — {} HRI windows (observe 0.53 s, predict 1.0 s at 15 Hz); robot errors in mm against the retargeted reference, F1 against the original human pair\n",
@@ -238,25 +206,13 @@ fn hri(args: &Args, split: Split) -> Result<()> {
     );
     println!("{}", markdown(&reports));
     // The model's other agent: the partner's forecast, against the two baselines.
-    let mut human_rows = vec![];
-    for (i, (name, chunks)) in humans.iter().enumerate() {
-        let rows = pool_human(chunks);
-        if i == 0 {
-            human_rows.extend(rows.iter().take(2).cloned());
-        }
-        if let Some(m) = rows.get(2) {
-            human_rows.push(echo_hri::eval::HumanReport {
-                name: name.clone(),
-                ..m.clone()
-            });
-        }
-    }
-    if !human_rows.is_empty() {
+    if !humans.is_empty() {
+        humans.splice(0..0, human_baselines(&refs));
         println!("the partner (human agent), errors in mm against what the person did\n");
-        println!("{}", markdown_human(&human_rows));
+        println!("{}", markdown_human(&humans));
     }
     if let Some(p) = &args.json {
-        let v = serde_json::json!({ "robot": reports, "human": human_rows });
+        let v = serde_json::json!({ "robot": reports, "human": humans });
         std::fs::write(p, serde_json::to_vec_pretty(&v)?)?;
     }
     Ok(())
